@@ -1,0 +1,341 @@
+"""Frozen, validated configuration of the environment and of the Reynolds controller.
+
+Every default is a number from the study (Akgun, "Development of Leader Following, Boids Inspired
+Algorithm Using ROS") unless its docstring says otherwise; ``../shared/DESIGN.md`` lists them.
+Bad values raise ``ValueError`` naming the field, the value and the allowed range.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "external")
+"""Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
+
+
+def _number(name: str, value: Any, lo: float, hi: float, *, lo_open: bool = False,
+            hi_open: bool = False, unit: str = "") -> float:
+    """Checks that ``value`` is a real number in the given interval and returns it as float."""
+    left, right = "(" if lo_open else "[", ")" if hi_open else "]"
+    allowed = f"{left}{lo}, {hi}{right}{(' ' + unit) if unit else ''}"
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a number in {allowed}, got {value!r}")
+    v = float(value)
+    below = v <= lo if lo_open else v < lo
+    above = v >= hi if hi_open else v > hi
+    if not math.isfinite(v) or below or above:
+        raise ValueError(f"{name} must be in {allowed}, got {value!r}")
+    return v
+
+
+def _integer(name: str, value: Any, lo: int, hi: int) -> int:
+    """Checks that ``value`` is an integer (numpy integers accepted) in [lo, hi]."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
+    if not lo <= int(value) <= hi:
+        raise ValueError(f"{name} must be in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
+def _set(obj: object, name: str, value: Any) -> None:
+    object.__setattr__(obj, name, value)
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """The physical world: arena, robots and the physics time step (DESIGN section 2)."""
+
+    arena_half_size: float = 5.0
+    """Half the side of the square arena (m); walls at ±arena_half_size. Paper: 10 m × 10 m."""
+    robot_radius: float = 0.036
+    """Sphero SPRK+ radius (m)."""
+    robot_mass: float = 0.18
+    """Sphero SPRK+ mass (kg)."""
+    max_speed: float = 0.5
+    """Followers' speed limit (m/s); actions are clipped to it. Paper: 0.5 m/s."""
+    drive_force: float = 1.0
+    """Largest force (N) a robot's drive applies to track its commanded velocity. Not in the
+    paper (Stage set velocities instantly); 1 N reaches 0.5 m/s from rest in 0.09 s."""
+    dt: float = 0.1
+    """Control period (s): 10 Hz, as the original controller and simulator."""
+    substeps: int = 10
+    """Physics substeps per control step (fixed step dt / substeps)."""
+    collision_slop: float = 0.001
+    """pymunk collision slop (m). Its default (0.1) assumes pixels; in metres robots would sink."""
+
+    def __post_init__(self) -> None:
+        _set(self, "arena_half_size", _number("arena_half_size", self.arena_half_size, 0.5, 1000,
+                                              unit="m"))
+        _set(self, "robot_radius", _number("robot_radius", self.robot_radius, 0.0, 0.5,
+                                           lo_open=True, unit="m"))
+        _set(self, "robot_mass", _number("robot_mass", self.robot_mass, 0.0, 100, lo_open=True,
+                                         unit="kg"))
+        _set(self, "max_speed", _number("max_speed", self.max_speed, 0.0, 5.0, lo_open=True,
+                                        unit="m/s"))
+        _set(self, "drive_force", _number("drive_force", self.drive_force, 0.0, 1000,
+                                          lo_open=True, unit="N"))
+        _set(self, "dt", _number("dt", self.dt, 0.0, 1.0, lo_open=True, unit="s"))
+        _set(self, "substeps", _integer("substeps", self.substeps, 1, 1000))
+        _set(self, "collision_slop", _number("collision_slop", self.collision_slop, 0.0, 0.01,
+                                             unit="m"))
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """Group size, initial layout, leader path and episode end (DESIGN sections 2 and 6)."""
+
+    robots: int = 13
+    """Group size, the leader included, as the study counts it (study: 7, 13, 19)."""
+    leader_speed: float = 0.55
+    """Leader speed along its path (m/s). Study: 0.5, 0.55 (default), 0.6."""
+    path: str = "square"
+    """Leader path, one of PATHS. ``square`` is the paper's; the others are opt-in."""
+    path_size: float = 4.0
+    """Half extent of the leader path (m). 4.0 gives the paper's square exactly; the circle's
+    diameter, the figure-eight's length and the random waypoints' box scale with it."""
+    waypoints: tuple[tuple[float, float], ...] = ()
+    """Absolute targets (m) for ``path="waypoints"``; ignored by the other paths."""
+    laps: int = 1
+    """Laps of the circle and figure-eight paths."""
+    random_waypoint_count: int = 6
+    """Number of targets drawn for ``path="random_waypoints"``."""
+    arrival_margin: float = 0.1
+    """A leader move ends when within this distance of its target (m). Paper: 0.1 m."""
+    startup_time: float = 2.0
+    """Time (s) the leader waits after reset before moving; the Reynolds followers hold still as
+    long. Paper: 2.0 s."""
+    tail_time: float = 1.7
+    """Time (s) the episode goes on after the leader finishes its path; 1.7 s makes the paper's
+    case last 74.6 s, the study's T."""
+    max_cycles: int | None = None
+    """Hard step limit (truncation). None: 3× the path's nominal duration, or 1000 steps for the
+    ``external`` leader."""
+    init_jitter: float = 0.05
+    """Half width (m) of the uniform, seeded jitter added to every follower's initial grid
+    position, so that seeds give different runs (the study's runs differed through ROS timing)."""
+    layout_spacing: float = 0.5
+    """Spacing (m) of the initial grid behind the leader. Paper: 0.5 m."""
+
+    def __post_init__(self) -> None:
+        _set(self, "robots", _integer("robots", self.robots, 2, 10_000))
+        _set(self, "leader_speed", _number("leader_speed", self.leader_speed, 0.0, 2.0,
+                                           lo_open=True, unit="m/s"))
+        if self.path not in PATHS:
+            raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
+        _set(self, "path_size", _number("path_size", self.path_size, 0.0, 1000, lo_open=True,
+                                        unit="m"))
+        _set(self, "waypoints", _waypoints(self.waypoints))
+        if self.path == "waypoints" and not self.waypoints:
+            raise ValueError("waypoints must hold at least one (x, y) target when "
+                             "path='waypoints', got ()")
+        _set(self, "laps", _integer("laps", self.laps, 1, 1000))
+        _set(self, "random_waypoint_count",
+             _integer("random_waypoint_count", self.random_waypoint_count, 1, 1000))
+        _set(self, "arrival_margin", _number("arrival_margin", self.arrival_margin, 0.0, 1.0,
+                                             lo_open=True, unit="m"))
+        _set(self, "startup_time", _number("startup_time", self.startup_time, 0.0, 600, unit="s"))
+        _set(self, "tail_time", _number("tail_time", self.tail_time, 0.0, 600, unit="s"))
+        if self.max_cycles is not None:
+            _set(self, "max_cycles", _integer("max_cycles", self.max_cycles, 1, 10**9))
+        _set(self, "init_jitter", _number("init_jitter", self.init_jitter, 0.0, 0.2, unit="m"))
+        _set(self, "layout_spacing", _number("layout_spacing", self.layout_spacing, 0.1, 10,
+                                             unit="m"))
+
+
+def _waypoints(value: Any) -> tuple[tuple[float, float], ...]:
+    try:
+        points = tuple((float(p[0]), float(p[1])) for p in value)
+        if any(len(p) != 2 for p in value):
+            raise ValueError
+    except (TypeError, ValueError, IndexError):
+        raise ValueError(f"waypoints must be a sequence of (x, y) pairs in metres, "
+                         f"got {value!r}") from None
+    if not all(math.isfinite(c) for p in points for c in p):
+        raise ValueError(f"waypoints must be finite, got {value!r}")
+    return points
+
+
+@dataclass(frozen=True)
+class ObservationConfig:
+    """What each follower senses (DESIGN section 6): exact positions and velocities."""
+
+    horizon: float = 1.0
+    """Neighbour radius (m): robots within it, the leader included, fill the slots. Paper: 1.0."""
+    neighbours: int = 18
+    """K, the number of neighbour slots (nearest first). 18 holds every other robot of the
+    study's largest group, so the Reynolds policy sees exactly what full state gives it."""
+    velocity_bound: float = 3.0
+    """Observed velocities are clipped to ±this (m/s) so observations stay in their Box."""
+
+    def __post_init__(self) -> None:
+        _set(self, "horizon", _number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
+        _set(self, "neighbours", _integer("neighbours", self.neighbours, 0, 1024))
+        _set(self, "velocity_bound", _number("velocity_bound", self.velocity_bound, 0.0, 100,
+                                             lo_open=True, unit="m/s"))
+
+
+@dataclass(frozen=True)
+class MetricsConfig:
+    """Violation thresholds (all against the leader) and reward weights (DESIGN section 4)."""
+
+    separation_threshold: float = 0.7
+    """Separation violation when a follower is closer than this to the leader (m)."""
+    cohesion_threshold: float = 2.25
+    """Cohesion violation when a follower is farther than this from the leader (m)."""
+    alignment_threshold_deg: float = 45.0
+    """Alignment violation when the commanded directions differ by more than this (degrees)."""
+    wrap_alignment: bool = True
+    """Wrap the angle difference into [0°, 180°]. False reproduces the study's analysis, which
+    took |θ_leader − θ_i| unwrapped (so −179° vs 180° counted as a violation)."""
+    reward_separation: float = 1.0
+    """Weight of the separation flag in the reward."""
+    reward_cohesion: float = 1.0
+    """Weight of the cohesion flag in the reward."""
+    reward_alignment: float = 1.0
+    """Weight of the alignment flag in the reward."""
+
+    def __post_init__(self) -> None:
+        _set(self, "separation_threshold",
+             _number("separation_threshold", self.separation_threshold, 0.0, 100, unit="m"))
+        _set(self, "cohesion_threshold",
+             _number("cohesion_threshold", self.cohesion_threshold, 0.0, 1000, lo_open=True,
+                     unit="m"))
+        _set(self, "alignment_threshold_deg",
+             _number("alignment_threshold_deg", self.alignment_threshold_deg, 0.0, 360,
+                     unit="degrees"))
+        if not isinstance(self.wrap_alignment, bool):
+            raise ValueError(f"wrap_alignment must be True or False, got {self.wrap_alignment!r}")
+        for name in ("reward_separation", "reward_cohesion", "reward_alignment"):
+            _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
+
+
+_SECTIONS = {"world": WorldConfig, "scenario": ScenarioConfig, "observation": ObservationConfig,
+             "metrics": MetricsConfig}
+FIELD_OWNER: dict[str, str] = {f.name: sec for sec, cls in _SECTIONS.items() for f in fields(cls)}
+"""Which section owns each flat config name (``robots`` -> ``scenario``, ...)."""
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """The whole environment configuration: one section per concern.
+
+    Build it from flat field names with :meth:`from_kwargs` (``EnvConfig.from_kwargs(robots=19,
+    leader_speed=0.6)``) and derive variants with :meth:`replace`.
+    """
+
+    world: WorldConfig = field(default_factory=WorldConfig)
+    scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
+    metrics: MetricsConfig = field(default_factory=MetricsConfig)
+
+    def __post_init__(self) -> None:
+        for name, cls in _SECTIONS.items():
+            if not isinstance(getattr(self, name), cls):
+                raise TypeError(f"{name} must be a {cls.__name__}, got "
+                                f"{type(getattr(self, name)).__name__}")
+        from boids_env.scenario import check_fits  # noqa: PLC0415 (scenario imports config)
+
+        check_fits(self)
+
+    @classmethod
+    def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
+        """Builds a config from flat field names; unknown names raise ``TypeError``."""
+        return cls().replace(**kwargs)
+
+    def replace(self, **kwargs: Any) -> EnvConfig:
+        """Returns a copy with the named flat fields changed (validated)."""
+        unknown = sorted(set(kwargs) - set(FIELD_OWNER))
+        if unknown:
+            raise TypeError(f"unknown config field(s) {unknown}; valid fields: "
+                            f"{sorted(FIELD_OWNER)}")
+        changes: dict[str, dict[str, Any]] = {}
+        for name, value in kwargs.items():
+            changes.setdefault(FIELD_OWNER[name], {})[name] = value
+        sections = {sec: dataclasses.replace(getattr(self, sec), **chg)
+                    for sec, chg in changes.items()}
+        return dataclasses.replace(self, **sections)
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """A JSON-ready nested dict (tuples become lists)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Mapping[str, Any]]) -> EnvConfig:
+        """Inverse of :meth:`to_dict`; unknown sections or fields raise ``TypeError``."""
+        if not isinstance(data, Mapping):
+            raise TypeError(f"config must be a mapping of sections, got {type(data).__name__}")
+        unknown = sorted(set(data) - set(_SECTIONS))
+        if unknown:
+            raise TypeError(f"unknown config section(s) {unknown}; valid: {sorted(_SECTIONS)}")
+        flat: dict[str, Any] = {}
+        for section in data.values():
+            flat.update(section)
+        if "waypoints" in flat:
+            flat["waypoints"] = tuple(tuple(p) for p in flat["waypoints"])
+        return cls.from_kwargs(**flat)
+
+
+@dataclass(frozen=True)
+class ReynoldsParams:
+    """Parameters of the Reynolds + leader controller (DESIGN section 3)."""
+
+    separation_weight: float = 1.0
+    cohesion_weight: float = 1.0
+    alignment_weight: float = 1.0
+    leader_weight: float = 1.0
+    """Weight of the leader-following term. Study: 1.0, 1.1, 1.2."""
+    horizon: float = 1.0
+    """Neighbour radius (m). Paper 1.0, original code 0.75."""
+    desired_separation: float = 0.7
+    """Neighbours closer than this push away (m). Paper 0.7, original code 0.45."""
+    max_speed: float = 0.5
+    """Commanded speed limit (m/s)."""
+    max_force: float = 0.23
+    """Steering force limit (N); not stated in the paper, the original code's 0.23."""
+    mass: float = 0.18
+    """Mass (kg) used to integrate the steering force."""
+    dt: float = 0.1
+    """Control period (s)."""
+    startup_time: float = 2.0
+    """Zero command for this long after reset (s)."""
+
+    def __post_init__(self) -> None:
+        for name in ("separation_weight", "cohesion_weight", "alignment_weight",
+                     "leader_weight"):
+            _set(self, name, _number(name, getattr(self, name), 0.0, 100))
+        _set(self, "horizon", _number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
+        _set(self, "desired_separation", _number("desired_separation", self.desired_separation,
+                                                 0.0, 100, unit="m"))
+        _set(self, "max_speed", _number("max_speed", self.max_speed, 0.0, 5, lo_open=True,
+                                        unit="m/s"))
+        _set(self, "max_force", _number("max_force", self.max_force, 0.0, 1000, lo_open=True,
+                                        unit="N"))
+        _set(self, "mass", _number("mass", self.mass, 0.0, 100, lo_open=True, unit="kg"))
+        _set(self, "dt", _number("dt", self.dt, 0.0, 1, lo_open=True, unit="s"))
+        _set(self, "startup_time", _number("startup_time", self.startup_time, 0.0, 600,
+                                           unit="s"))
+
+
+PRESETS: dict[str, ReynoldsParams] = {
+    # Table IV of the paper.
+    "paper": ReynoldsParams(),
+    # The defaults of the original code (boids_ros / sphero_formation).
+    "boids_ros": ReynoldsParams(horizon=0.75, desired_separation=0.45),
+}
+"""Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
+
+
+def reynolds_params(preset: str = "paper", **overrides: Any) -> ReynoldsParams:
+    """Returns the named preset with ``overrides`` applied (validated)."""
+    if preset not in PRESETS:
+        raise ValueError(f"preset must be one of {sorted(PRESETS)}, got {preset!r}")
+    valid = {f.name for f in fields(ReynoldsParams)}
+    unknown = sorted(set(overrides) - valid)
+    if unknown:
+        raise TypeError(f"unknown Reynolds parameter(s) {unknown}; valid: {sorted(valid)}")
+    return dataclasses.replace(PRESETS[preset], **overrides)

@@ -1,0 +1,349 @@
+"""``BoidsEnv``: the leader-following flock of the study as a PettingZoo ``ParallelEnv``."""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping
+from dataclasses import fields
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+from pettingzoo.utils.conversions import parallel_to_aec
+
+from boids_env import metrics, scenario
+from boids_env.config import EnvConfig, ScenarioConfig
+from boids_env.leader import ExternalLeader, Leader, make_leader
+from boids_env.observations import ObservationLayout, build_observations
+from boids_env.world import Snapshot, World
+
+AgentID = str
+RESET_OPTIONS = tuple(f.name for f in fields(ScenarioConfig) if f.name != "robots")
+"""Scenario fields that ``reset(options=...)`` may change for one episode."""
+
+
+class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
+    """A leader-following boids flock of Sphero robots (Akgun's ROS study), on pymunk.
+
+    ## Description
+    Robot 0, the leader, drives a scripted path (by default the study's square at 0.55 m/s);
+    the followers ``follower_1`` … ``follower_{N-1}`` are the agents. They should keep the
+    study's three rules *against the leader*: not closer than 0.7 m (separation), not farther
+    than 2.25 m (cohesion), heading within 45° of the leader's command (alignment).
+
+    ## Action Space
+    Per follower ``Box(-max_speed, max_speed, (2,), float32)``: the commanded velocity (vx, vy)
+    in m/s, world frame. The speed (the vector's norm) is clipped to ``max_speed`` (0.5 m/s);
+    the robot tracks the command with a force of at most ``drive_force`` (1 N).
+
+    ## Observation Space
+    Per follower ``Box`` of size 6 + 5·K, float32 (see :mod:`boids_env.observations`):
+
+    | slice | content | unit | bound |
+    |---|---|---|---|
+    | 0:2 | own velocity | m/s | ±velocity_bound |
+    | 2:4 | leader position relative to self | m | ±2·arena_half_size |
+    | 4:6 | leader velocity | m/s | ±velocity_bound |
+    | 6+5k : 11+5k | neighbour k (nearest first, within horizon, leader included): relative position, velocity, valid flag | m, m/s, 1 | ±horizon, ±velocity_bound, [0, 1] |
+
+    ## Rewards
+    Per follower and step: −(w_sep·[sep] + w_coh·[coh] + w_ali·[ali]) · dt, the flags of
+    :mod:`boids_env.metrics`; each term is in ``infos[agent]`` as ``reward_separation``,
+    ``reward_cohesion``, ``reward_alignment``. Summed over followers and the episode, the
+    return is −(V_sep + V_coh + V_align) · T.
+
+    ## Starting State
+    Leader at (0, 0), followers on the study's 0.5 m grid behind it with a seeded jitter of
+    ±``init_jitter`` (0.05 m); everything at rest. The leader waits ``startup_time`` (2 s).
+
+    ## Episode End
+    No termination. All followers are truncated ``tail_time`` (1.7 s) after the leader finishes
+    its path (74.6 s in the study's case), or at ``max_cycles`` steps.
+
+    ## Arguments
+    ``BoidsEnv(config=None, render_mode=None, **fields)``: any field of
+    :class:`~boids_env.config.EnvConfig` by its flat name, e.g. ``robots=19`` (group size with
+    the leader), ``leader_speed=0.6``, ``path="circle"``, ``max_cycles=500``.
+    ``reset(options=...)`` may change scenario fields (not ``robots``) for one episode.
+
+    ## Version History
+    - v0: first release.
+    """
+
+    metadata = {"name": "boids_leader_v0", "render_modes": ["human", "rgb_array"],
+                "render_fps": 10, "is_parallelizable": True}
+
+    def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None,
+                 **kwargs: Any) -> None:
+        if config is not None and not isinstance(config, EnvConfig):
+            raise TypeError(f"config must be an EnvConfig, got {type(config).__name__}")
+        base = config if config is not None else EnvConfig()
+        self.config = base.replace(**kwargs) if kwargs else base
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or "
+                             f"None, got {render_mode!r}")
+        self.render_mode = render_mode
+        world, obs_cfg = self.config.world, self.config.observation
+        n = self.config.scenario.robots
+        self.possible_agents: list[AgentID] = [f"follower_{i}" for i in range(1, n)]
+        self.agents: list[AgentID] = []
+        self.layout = ObservationLayout(obs_cfg.neighbours)
+        self.observation_spaces = {
+            a: self.layout.space(world.arena_half_size, obs_cfg.horizon, obs_cfg.velocity_bound)
+            for a in self.possible_agents}
+        self.action_spaces = {a: spaces.Box(-world.max_speed, world.max_speed, (2,), np.float32)
+                              for a in self.possible_agents}
+        h, vb = world.arena_half_size, obs_cfg.velocity_bound
+        self.state_space = spaces.Box(
+            np.concatenate([np.full(2 * n, -h), np.full(2 * n, -vb)]).astype(np.float32),
+            np.concatenate([np.full(2 * n, h), np.full(2 * n, vb)]).astype(np.float32),
+            dtype=np.float32)
+        self._rng: np.random.Generator | None = None
+        self._world: World | None = None
+        self._leader: Leader | None = None
+        self._renderer: Any = None
+        self.episode_config = self.config
+        self.overlays: dict[str, npt.NDArray[np.float64]] = {}
+        """Per-follower vectors (F, 2) the renderer draws as arrows (e.g. rule forces)."""
+
+    # ----------------------------------------------------------------------------- spaces
+    def observation_space(self, agent: AgentID) -> spaces.Box:
+        return self.observation_spaces[self._known(agent)]
+
+    def action_space(self, agent: AgentID) -> spaces.Box:
+        return self.action_spaces[self._known(agent)]
+
+    def _known(self, agent: AgentID) -> AgentID:
+        if agent not in self.observation_spaces:
+            raise KeyError(f"unknown agent {agent!r}; agents are follower_1 … "
+                           f"follower_{len(self.possible_agents)}")
+        return agent
+
+    # ------------------------------------------------------------------------------ reset
+    def reset(self, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[dict[AgentID, np.ndarray], dict[AgentID, dict[str, Any]]]:
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
+                                 or seed < 0):
+            raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
+        episode = self._episode_config(options)  # validated before any state changes
+        if seed is not None:
+            self._rng = np.random.default_rng(int(seed))
+        elif self._rng is None:
+            self._rng = np.random.default_rng()
+        self.episode_config = episode
+        sc, wc = episode.scenario, episode.world
+        self._initial_positions = scenario.initial_positions(sc, self._rng)
+        self._leader = make_leader(sc, self._rng)
+        self._world = World(wc, self._initial_positions)
+        self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
+        self._tail_steps = round(sc.tail_time / wc.dt)
+        self._finish_step: int | None = None
+        self._history: list[npt.NDArray[np.float64]] = []
+        self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)
+        self.agents = list(self.possible_agents)
+        self.overlays = {}
+        obs = self._observe()
+        if self.render_mode == "human":
+            self.render()
+        return dict(zip(self.agents, obs, strict=True)), {a: {} for a in self.agents}
+
+    def _episode_config(self, options: Mapping[str, Any] | None) -> EnvConfig:
+        if options is None:
+            return self.config
+        if not isinstance(options, Mapping):
+            raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
+        if "robots" in options:
+            raise ValueError("options cannot change robots (the group size fixes "
+                             "possible_agents); make a new env with robots=...")
+        unknown = sorted(k for k in options if k not in RESET_OPTIONS)
+        if unknown:
+            warnings.warn(f"reset ignores unknown option(s) {unknown}; it accepts "
+                          f"{list(RESET_OPTIONS)}", UserWarning, stacklevel=3)
+        known = {k: v for k, v in options.items() if k in RESET_OPTIONS}
+        return self.config.replace(**known) if known else self.config
+
+    # ------------------------------------------------------------------------------- step
+    def step(self, actions: Mapping[AgentID, npt.ArrayLike]) -> tuple[
+            dict[AgentID, np.ndarray], dict[AgentID, float], dict[AgentID, bool],
+            dict[AgentID, bool], dict[AgentID, dict[str, Any]]]:
+        """Applies every live follower's velocity command and advances 0.1 s."""
+        if self._world is None:
+            raise RuntimeError("step() called before reset(); call reset() first")
+        if not self.agents:
+            if actions:
+                raise RuntimeError("the episode has ended (every follower is truncated); call "
+                                   "reset() before stepping again")
+            return {}, {}, {}, {}, {}
+        commands = self._parse_actions(actions)
+        world, leader = self._world, self._leader
+        assert leader is not None
+        lead = leader.command(world.time, world.positions[0])
+        full = np.vstack([lead[None, :], commands])
+        world.step(full)
+        self._history.append(world.commanded)
+        cfg = self.episode_config
+        flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded)
+        terms = metrics.reward_terms(flags, cfg.metrics, cfg.world.dt)
+        for row, name in enumerate(metrics.VIOLATIONS):
+            self._counts[row] += flags[name]
+        if self._finish_step is None and leader.finished:
+            self._finish_step = world.steps
+        done = world.steps >= self._step_limit or (
+            self._finish_step is not None and world.steps >= self._finish_step + self._tail_steps)
+        agents = self.agents
+        obs = self._observe()
+        reward = (terms["separation"] + terms["cohesion"] + terms["alignment"]).tolist()
+        sep, coh, ali = (terms[n].tolist() for n in metrics.VIOLATIONS)
+        infos = {a: {"reward_separation": s, "reward_cohesion": c, "reward_alignment": al}
+                 for a, s, c, al in zip(agents, sep, coh, ali, strict=True)}
+        out = (dict(zip(agents, obs, strict=True)), dict(zip(agents, reward, strict=True)),
+               dict.fromkeys(agents, False), dict.fromkeys(agents, done), infos)
+        if done:
+            self.agents = []
+        if self.render_mode == "human":
+            self.render()
+        return out
+
+    def _parse_actions(self, actions: Mapping[AgentID, npt.ArrayLike]
+                       ) -> npt.NDArray[np.float64]:
+        if not isinstance(actions, Mapping):
+            raise TypeError(f"actions must be a dict of agent -> (vx, vy), got "
+                            f"{type(actions).__name__}")
+        if len(actions) != len(self.agents) or not all(a in actions for a in self.agents):
+            unknown = sorted(str(a) for a in actions if a not in self.agents)
+            missing = [a for a in self.agents if a not in actions]
+            raise KeyError(f"actions must hold exactly the live agents; unknown: {unknown}, "
+                           f"missing: {missing}")
+        try:
+            arr = np.array([actions[a] for a in self.agents], dtype=np.float64)
+        except (TypeError, ValueError):
+            arr = None
+        if arr is None or arr.shape != (len(self.agents), 2):
+            for a in self.agents:
+                shape = np.shape(actions[a]) if _numeric(actions[a]) else None
+                if shape != (2,):
+                    raise ValueError(f"action of {a} must be 2 numbers (vx, vy) in m/s, got "
+                                     f"{actions[a]!r}")
+            raise ValueError("actions must be 2 numbers per agent")  # pragma: no cover
+        if not np.isfinite(arr).all():
+            bad = [a for a, row in zip(self.agents, arr, strict=True)
+                   if not np.isfinite(row).all()]
+            raise ValueError(f"actions must be finite; NaN or inf from {bad}")
+        limit = self.episode_config.world.max_speed
+        speed = np.sqrt(np.einsum("fd,fd->f", arr, arr))
+        over = speed > limit
+        if over.any():
+            arr[over] *= (limit / speed[over])[:, None]
+        return arr
+
+    def _observe(self) -> npt.NDArray[np.float32]:
+        assert self._world is not None
+        cfg = self.episode_config
+        return build_observations(self._world.positions, self._world.velocities, self.layout,
+                                  cfg.observation.horizon, cfg.observation.velocity_bound,
+                                  cfg.world.arena_half_size)
+
+    # -------------------------------------------------------------------------- queries
+    def state(self) -> np.ndarray:
+        """Global state: positions (N·2) then velocities (N·2), the leader first, float32."""
+        world = self._require_world()
+        h = self.episode_config.world.arena_half_size
+        vb = self.episode_config.observation.velocity_bound
+        return np.concatenate([np.clip(world.positions, -h, h).ravel(),
+                               np.clip(world.velocities, -vb, vb).ravel()]).astype(np.float32)
+
+    def snapshot(self) -> Snapshot:
+        """The world's current arrays (copies): positions, velocities, commands, contacts."""
+        return self._require_world().snapshot()
+
+    def episode_metrics(self) -> dict[str, Any]:
+        """The study's V_* and per-follower counts of the episode so far."""
+        world = self._require_world()
+        steps = max(world.steps, 1)
+        out: dict[str, Any] = {}
+        for row, name in enumerate(metrics.VIOLATIONS):
+            out[metrics.V_KEYS[name]] = float(self._counts[row].sum() / steps)
+            out[metrics.COUNT_KEYS[name]] = self._counts[row].tolist()
+        out["steps"] = world.steps
+        out["duration"] = world.time
+        return out
+
+    @property
+    def leader(self) -> Leader:
+        """The current episode's leader (e.g. an ExternalLeader to steer)."""
+        if self._leader is None:
+            raise RuntimeError("no episode yet; call reset() first")
+        return self._leader
+
+    def set_leader_command(self, velocity: npt.ArrayLike) -> None:
+        """Velocity (m/s) for an ``external`` leader, used from the next step on."""
+        if not isinstance(self.leader, ExternalLeader):
+            raise RuntimeError(f"set_leader_command needs path='external', this episode's "
+                               f"path is {self.episode_config.scenario.path!r}")
+        self.leader.set_command(velocity)
+
+    def _require_world(self) -> World:
+        if self._world is None:
+            raise RuntimeError("no episode yet; call reset() first")
+        return self._world
+
+    # ------------------------------------------------------------------------- rendering
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            warnings.warn("render() called without a render_mode; pass render_mode='human' or "
+                          "'rgb_array' to the constructor", UserWarning, stacklevel=2)
+            return None
+        if self._world is None:
+            raise RuntimeError("render() called before reset()")
+        if self._renderer is None:
+            from boids_env.render import Renderer  # noqa: PLC0415 (pygame is an extra)
+
+            self._renderer = Renderer(self.render_mode, self.config.world.arena_half_size)
+        return self._renderer.draw(self)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # --------------------------------------------------------------------------- pickle
+    def __getstate__(self) -> dict[str, Any]:
+        # pymunk cannot serialise its contact cache, so a copied space diverges after a
+        # contact. The world is rebuilt from the initial positions and the commands replayed,
+        # which is bit-exact because the physics is deterministic.
+        state = self.__dict__.copy()
+        state["_world"] = None
+        state["_renderer"] = None
+        state["_replay"] = self._world is not None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        replay = state.pop("_replay", False)
+        self.__dict__.update(state)
+        if replay:
+            self._world = World(self.episode_config.world, self._initial_positions)
+            for command in self._history:
+                self._world.step(command)
+
+
+def _numeric(value: Any) -> bool:
+    try:
+        np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def parallel_env(render_mode: str | None = None, **kwargs: Any) -> BoidsEnv:
+    """The parallel env; keyword arguments are config fields by flat name (``robots=19``)."""
+    return BoidsEnv(render_mode=render_mode, **kwargs)
+
+
+def env(render_mode: str | None = None, **kwargs: Any) -> Any:
+    """The AEC version (``parallel_to_aec``) of :func:`parallel_env`."""
+    return parallel_to_aec(parallel_env(render_mode=render_mode, **kwargs))
+
+
+__all__ = ["BoidsEnv", "env", "parallel_env"]

@@ -1,0 +1,177 @@
+"""Leader trajectories: the paper's square and the opt-in paths of DESIGN section 2.
+
+A leader is a small state machine: ``command(t, position)`` returns the velocity (m/s, world
+frame) to command at time ``t`` given the leader's measured position, and ``finished`` tells
+whether its path is done. Before ``startup_time`` every leader commands zero.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from boids_env.config import ScenarioConfig
+
+Vec = npt.NDArray[np.float64]
+
+PAPER_SQUARE = ((0.0, 4.0), (-4.0, 4.0), (-4.0, -4.0), (4.0, -4.0), (4.0, 4.0), (-4.0, 4.0))
+"""The study's leader targets (m), driven from (0, 0) one axis at a time."""
+
+
+class Leader:
+    """Base class: zero command until the start-up time, then the path's own command."""
+
+    def __init__(self, speed: float, startup_time: float) -> None:
+        self.speed = speed
+        self.startup_time = startup_time
+        self.finished = False
+
+    def command(self, t: float, position: Vec) -> Vec:
+        """Velocity command (m/s) at time ``t`` (s since reset) for the measured ``position``."""
+        if t < self.startup_time - 1e-9 or self.finished:
+            return np.zeros(2)
+        return self._move(t - self.startup_time, position)
+
+    def _move(self, t: float, position: Vec) -> Vec:
+        raise NotImplementedError
+
+    @property
+    def nominal_duration(self) -> float | None:
+        """Time (s) the path takes at ``speed`` from the end of start-up; None if unbounded."""
+        return None
+
+
+class WaypointLeader(Leader):
+    """Drives to absolute targets in turn at constant speed; a move ends within ``margin``.
+
+    With ``axis_aligned`` (the paper's square) each move runs along the one axis on which the
+    target differs from the previous one and its end is judged along that axis, as the original
+    script drove the Sphero; otherwise the leader heads straight at the target.
+    """
+
+    def __init__(self, targets: npt.ArrayLike, speed: float, startup_time: float, margin: float,
+                 *, axis_aligned: bool, start: npt.ArrayLike = (0.0, 0.0)) -> None:
+        super().__init__(speed, startup_time)
+        self.targets = np.asarray(targets, dtype=float).reshape(-1, 2)
+        self.margin = margin
+        self.axis_aligned = axis_aligned
+        self.index = 0
+        previous = np.vstack([np.asarray(start, dtype=float), self.targets[:-1]])
+        self._axes = np.argmax(np.abs(self.targets - previous), axis=1)
+        self._length = float(np.sum(np.linalg.norm(self.targets - previous, axis=1)))
+
+    def _move(self, t: float, position: Vec) -> Vec:
+        while self.index < len(self.targets):
+            offset = self.targets[self.index] - position
+            if self.axis_aligned:
+                axis = self._axes[self.index]
+                if abs(offset[axis]) > self.margin:
+                    out = np.zeros(2)
+                    out[axis] = math.copysign(self.speed, offset[axis])
+                    return out
+            else:
+                distance = math.hypot(offset[0], offset[1])
+                if distance > self.margin:
+                    return offset * (self.speed / distance)
+            self.index += 1  # arrived: corners are instantaneous
+        self.finished = True
+        return np.zeros(2)
+
+    @property
+    def nominal_duration(self) -> float:
+        return (self._length - len(self.targets) * self.margin) / self.speed
+
+
+class CurveLeader(Leader):
+    """Follows a closed curve at constant speed: a reference point moves along the curve by
+    arc length and the leader tracks it (feed-forward tangent plus proportional correction)."""
+
+    gain = 2.0
+    """Proportional gain (1/s) pulling the leader back onto its reference point."""
+
+    def __init__(self, curve: Callable[[Vec], Vec], speed: float, startup_time: float,
+                 laps: int) -> None:
+        super().__init__(speed, startup_time)
+        phase = np.linspace(0.0, 2 * math.pi * laps, 4000 * laps + 1)
+        self._points = curve(phase)
+        seg = np.linalg.norm(np.diff(self._points, axis=0), axis=1)
+        self._arc = np.concatenate([[0.0], np.cumsum(seg)])
+
+    def _point(self, s: float) -> Vec:
+        s = min(max(s, 0.0), self._arc[-1])
+        return np.array([np.interp(s, self._arc, self._points[:, 0]),
+                         np.interp(s, self._arc, self._points[:, 1])])
+
+    def _move(self, t: float, position: Vec) -> Vec:
+        s = self.speed * t
+        if s >= self._arc[-1]:
+            self.finished = True
+            return np.zeros(2)
+        ahead = self._point(s + 0.05)
+        here = self._point(s)
+        tangent = (ahead - here) / max(np.linalg.norm(ahead - here), 1e-12)
+        out = self.speed * tangent + self.gain * (here - position)
+        norm = np.linalg.norm(out)
+        limit = 1.5 * self.speed
+        return out * (limit / norm) if norm > limit else out
+
+    @property
+    def nominal_duration(self) -> float:
+        return float(self._arc[-1]) / self.speed
+
+
+class ExternalLeader(Leader):
+    """A leader driven from outside: :meth:`set_command` (keyboard, scripts) or a callable
+    ``controller(t, position) -> velocity``. Its path never finishes."""
+
+    def __init__(self, speed: float, startup_time: float,
+                 controller: Callable[[float, Vec], npt.ArrayLike] | None = None) -> None:
+        super().__init__(speed, startup_time)
+        self.controller = controller
+        self._command = np.zeros(2)
+
+    def set_command(self, velocity: npt.ArrayLike) -> None:
+        """Sets the velocity (m/s) used from the next step on; its speed is capped at 2 m/s."""
+        v = np.asarray(velocity, dtype=float)
+        if v.shape != (2,) or not np.all(np.isfinite(v)):
+            raise ValueError(f"leader velocity must be 2 finite numbers (m/s), got {velocity!r}")
+        norm = float(np.linalg.norm(v))
+        self._command = v * (2.0 / norm) if norm > 2.0 else v
+
+    def _move(self, t: float, position: Vec) -> Vec:
+        if self.controller is not None:
+            self.set_command(self.controller(t, position))
+        return self._command.copy()
+
+
+def make_leader(scenario: ScenarioConfig, rng: np.random.Generator) -> Leader:
+    """Builds the leader of ``scenario.path``; ``rng`` draws the random waypoints."""
+    size, speed, start = scenario.path_size, scenario.leader_speed, scenario.startup_time
+    margin = scenario.arrival_margin
+    if scenario.path == "square":
+        targets = np.array(PAPER_SQUARE) * (size / 4.0)
+        return WaypointLeader(targets, speed, start, margin, axis_aligned=True)
+    if scenario.path == "waypoints":
+        return WaypointLeader(scenario.waypoints, speed, start, margin, axis_aligned=False)
+    if scenario.path == "random_waypoints":
+        targets = rng.uniform(-size, size, (scenario.random_waypoint_count, 2))
+        return WaypointLeader(targets, speed, start, margin, axis_aligned=False)
+    if scenario.path == "circle":
+        radius = size / 2
+
+        def circle(phi: Vec) -> Vec:  # through the origin, heading +y, centre (-r, 0)
+            return np.stack([radius * (np.cos(phi) - 1), radius * np.sin(phi)], axis=1)
+
+        return CurveLeader(circle, speed, start, scenario.laps)
+    if scenario.path == "figure_eight":
+
+        def eight(phi: Vec) -> Vec:  # through the origin, lobes above and below it
+            return np.stack([-size / 2 * np.sin(2 * phi), size * np.sin(phi)], axis=1)
+
+        return CurveLeader(eight, speed, start, scenario.laps)
+    return ExternalLeader(speed, start)

@@ -1,0 +1,129 @@
+"""pygame renderer: arena, robots, leader trail, horizon circles, force arrows and a HUD.
+
+The only module that knows pixels. Works headless: ``rgb_array`` draws on an off-screen
+surface; ``human`` opens a window (set ``SDL_VIDEODRIVER=dummy`` where there is no display).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+try:
+    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+    import pygame
+except ImportError as exc:  # pragma: no cover - depends on the install
+    raise ImportError("rendering needs pygame-ce: pip install 'boids-env[render]'") from exc
+
+if TYPE_CHECKING:
+    from boids_env.env import BoidsEnv
+
+SIZE = 640
+"""Side of the arena drawing (px); the HUD strip sits below it."""
+HUD_HEIGHT = 28
+BACKGROUND = (250, 250, 247)
+WALL = (40, 40, 40)
+LEADER = (214, 39, 40)
+FOLLOWER = (31, 119, 180)
+TRAIL = (240, 160, 160)
+HORIZON = (200, 215, 235)
+ARROW_COLOURS = {  # as the original RViz view
+    "alignment": (0, 0, 255),
+    "cohesion": (0, 170, 0),
+    "separation": (230, 0, 0),
+    "leader": (120, 200, 255),
+}
+ARROW_SCALE = 2.0
+"""Metres drawn per newton of force (arrows of a 0.23 N force are 0.46 m long)."""
+
+
+class Renderer:
+    """Draws a :class:`~boids_env.env.BoidsEnv`; one per env, created on first render."""
+
+    def __init__(self, mode: str, arena_half_size: float, *, show_horizon: bool = False,
+                 trail_length: int = 2000) -> None:
+        self.mode = mode
+        self.half = arena_half_size
+        self.scale = (SIZE - 20) / (2 * arena_half_size)  # px per metre, 10 px margin
+        self.show_horizon = show_horizon
+        self.trail_length = trail_length
+        self._trail: list[tuple[int, int]] = []
+        self._last_steps = -1
+        pygame.font.init()
+        self._font = pygame.font.Font(None, 22)
+        self._window: Any = None
+        self._clock: Any = None
+        if mode == "human":
+            pygame.display.init()
+            self._window = pygame.display.set_mode((SIZE, SIZE + HUD_HEIGHT))
+            pygame.display.set_caption("boids-env")
+            self._clock = pygame.time.Clock()
+        self._canvas = pygame.Surface((SIZE, SIZE + HUD_HEIGHT))
+
+    def to_px(self, points: npt.NDArray[np.float64]) -> npt.NDArray[np.int64]:
+        """World metres (..., 2) to pixel coordinates (y up in the world, down on screen)."""
+        px = np.empty(points.shape, dtype=np.int64)
+        px[..., 0] = np.rint(SIZE / 2 + points[..., 0] * self.scale)
+        px[..., 1] = np.rint(SIZE / 2 - points[..., 1] * self.scale)
+        return px
+
+    def draw(self, env: BoidsEnv) -> npt.NDArray[np.uint8] | None:
+        """Draws the env's current state; returns an (H, W, 3) image in ``rgb_array`` mode."""
+        world = env._require_world()
+        canvas = self._canvas
+        canvas.fill(BACKGROUND)
+        corner = self.to_px(np.array([-self.half, self.half]))
+        side = int(round(2 * self.half * self.scale))
+        pygame.draw.rect(canvas, WALL, (int(corner[0]), int(corner[1]), side, side), 2)
+        pos = self.to_px(world.positions)
+        if world.steps < self._last_steps or world.steps == 0:
+            self._trail = []
+        if world.steps != self._last_steps:
+            self._trail.append((int(pos[0, 0]), int(pos[0, 1])))
+            self._trail = self._trail[-self.trail_length:]
+        self._last_steps = world.steps
+        if len(self._trail) > 1:
+            pygame.draw.lines(canvas, TRAIL, False, self._trail, 2)
+        if self.show_horizon:
+            r = int(env.episode_config.observation.horizon * self.scale)
+            for x, y in pos[1:]:
+                pygame.draw.circle(canvas, HORIZON, (int(x), int(y)), r, 1)
+        radius = max(3, int(round(env.config.world.robot_radius * self.scale)))
+        for x, y in pos[1:]:
+            pygame.draw.circle(canvas, FOLLOWER, (int(x), int(y)), radius)
+        pygame.draw.circle(canvas, LEADER, (int(pos[0, 0]), int(pos[0, 1])), radius + 1)
+        self._draw_arrows(canvas, world.positions[1:], env.overlays)
+        self._draw_hud(canvas, env)
+        if self.mode == "human":
+            self._window.blit(canvas, (0, 0))
+            pygame.event.pump()
+            pygame.display.flip()
+            self._clock.tick(env.metadata["render_fps"])
+            return None
+        return np.ascontiguousarray(np.transpose(pygame.surfarray.array3d(canvas), (1, 0, 2)))
+
+    def _draw_arrows(self, canvas: Any, followers: npt.NDArray[np.float64],
+                     overlays: dict[str, npt.NDArray[np.float64]]) -> None:
+        for name, vectors in overlays.items():
+            colour = ARROW_COLOURS.get(name, (90, 90, 90))
+            start = self.to_px(followers)
+            end = self.to_px(followers + ARROW_SCALE * np.asarray(vectors))
+            for a, b in zip(start, end, strict=True):
+                if tuple(a) != tuple(b):
+                    pygame.draw.line(canvas, colour, (int(a[0]), int(a[1])),
+                                     (int(b[0]), int(b[1])), 2)
+
+    def _draw_hud(self, canvas: Any, env: BoidsEnv) -> None:
+        m = env.episode_metrics()
+        text = (f"t = {m['duration']:5.1f} s   V_sep {m['V_sep']:.3f}   V_coh {m['V_coh']:.3f}"
+                f"   V_align {m['V_align']:.3f}")
+        pygame.draw.rect(canvas, (235, 235, 230), (0, SIZE, SIZE, HUD_HEIGHT))
+        canvas.blit(self._font.render(text, True, (20, 20, 20)), (8, SIZE + 6))
+
+    def close(self) -> None:
+        if self._window is not None:
+            pygame.display.quit()
+            self._window = None

@@ -1,0 +1,150 @@
+"""The pymunk world: circular Sphero robots in a walled square arena. Knows nothing of RL.
+
+Each robot is a dynamic disc (infinite moment: a holonomic robot does not spin) joined to a
+kinematic *control body* by a pivot joint with ``max_bias = 0`` and ``max_force = drive_force``:
+the joint then only removes the velocity difference between robot and control body, with a
+bounded force, so setting the control body's velocity commands the robot's velocity the way a
+velocity-controlled omnidirectional robot tracks ``cmd_vel``. Contacts are pymunk rigid contacts.
+
+All body reads and writes go through :mod:`pymunk.batch` in one call per control step. Its
+buffers list bodies in insertion order (robots, then control bodies) followed by the space's
+static body; :class:`World` checks that order once when it is built.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import pymunk
+import pymunk.batch as batch
+from scipy.spatial import cKDTree
+
+from boids_env.config import WorldConfig
+
+FloatArray = npt.NDArray[np.float64]
+
+WALL_THICKNESS = 0.05
+"""Radius (m) of the wall segments; their inner faces are at ±arena_half_size."""
+CONTACT_TOLERANCE = 0.001
+"""Two bodies closer than touching + this (m) count as in contact (pymunk's slop allows
+overlaps of about ``collision_slop``)."""
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """The world at one instant as plain arrays, robot 0 (the leader) first."""
+
+    time: float
+    """Seconds since reset."""
+    positions: FloatArray
+    """(N, 2) positions (m)."""
+    velocities: FloatArray
+    """(N, 2) measured velocities (m/s)."""
+    commanded: FloatArray
+    """(N, 2) velocities commanded for the last step (m/s)."""
+    contacts: npt.NDArray[np.int64]
+    """(M, 2) index pairs i < j of robots touching each other."""
+    wall_contacts: npt.NDArray[np.int64]
+    """(W,) indices of robots touching a wall."""
+
+
+class World:
+    """A fresh pymunk space with static walls and ``len(positions)`` robots at rest."""
+
+    def __init__(self, config: WorldConfig, positions: npt.ArrayLike) -> None:
+        self.config = config
+        start = np.asarray(positions, dtype=float)
+        self.n = len(start)
+        self.steps = 0
+        self.space = pymunk.Space()
+        self.space.collision_slop = config.collision_slop
+        self.space.iterations = 10
+        self._add_walls()
+        self._robots: list[pymunk.Body] = []
+        for p in start:
+            body = pymunk.Body(config.robot_mass, float("inf"))
+            body.position = (float(p[0]), float(p[1]))
+            shape = pymunk.Circle(body, config.robot_radius)
+            shape.elasticity = 0.0
+            shape.friction = 0.0
+            self.space.add(body, shape)
+            self._robots.append(body)
+        self._controls: list[pymunk.Body] = []
+        for robot in self._robots:
+            control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            control.position = robot.position
+            joint = pymunk.PivotJoint(control, robot, (0, 0), (0, 0))
+            joint.max_bias = 0.0  # velocity tracking only: no pull towards the control body
+            joint.max_force = config.drive_force
+            self.space.add(control, joint)
+            self._controls.append(control)
+        self._read = batch.Buffer()
+        self._fields = batch.BodyFields.POSITION | batch.BodyFields.VELOCITY
+        self._check_body_order()
+        # One velocity per body in batch order; written in place and handed to pymunk each step.
+        self._write_velocities = np.zeros((2 * self.n + 1, 2))
+        self._write = batch.Buffer()
+        self._write.set_float_buf(self._write_velocities.reshape(-1))
+        self.commanded = np.zeros((self.n, 2))
+        self.positions = start.copy()
+        self.velocities = np.zeros((self.n, 2))
+        self._refresh()
+
+    def _add_walls(self) -> None:
+        h = self.config.arena_half_size + WALL_THICKNESS
+        corners = [(-h, -h), (h, -h), (h, h), (-h, h)]
+        for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
+            wall = pymunk.Segment(self.space.static_body, a, b, WALL_THICKNESS)
+            wall.elasticity = 0.0
+            wall.friction = 0.0
+            self.space.add(wall)
+
+    def _check_body_order(self) -> None:
+        buf = batch.Buffer()
+        batch.get_space_bodies(self.space, batch.BodyFields.BODY_ID, buf)
+        ids = np.frombuffer(buf.int_buf(), dtype=np.uintp)
+        expected = [b.id for b in self._robots + self._controls] + [self.space.static_body.id]
+        if list(ids) != expected:  # pragma: no cover - guards against a pymunk change
+            raise RuntimeError("pymunk.batch body order changed; World cannot batch its I/O")
+
+    def _refresh(self) -> None:
+        self._read.clear()
+        batch.get_space_bodies(self.space, self._fields, self._read)
+        data = np.frombuffer(self._read.float_buf(), dtype=np.float64).reshape(-1, 4)
+        self.positions = data[: self.n, :2].copy()
+        self.velocities = data[: self.n, 2:].copy()
+
+    def step(self, commanded: FloatArray) -> None:
+        """Commands every robot's velocity (N, 2) and advances one control period."""
+        self.commanded = np.array(commanded, dtype=float)
+        w = self._write_velocities
+        w[: self.n] = self.velocities  # unchanged: batch writes every body's velocity
+        w[self.n : 2 * self.n] = self.commanded
+        batch.set_space_bodies(self.space, batch.BodyFields.VELOCITY, self._write)
+        h = self.config.dt / self.config.substeps
+        for _ in range(self.config.substeps):
+            self.space.step(h)
+        self.steps += 1
+        self._refresh()
+
+    @property
+    def time(self) -> float:
+        """Seconds since the world was built (steps × dt, no accumulated rounding)."""
+        return self.steps * self.config.dt
+
+    def contacts(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """Robot pairs (i < j) touching each other, and robots touching a wall."""
+        r = self.config.robot_radius
+        pairs = cKDTree(self.positions).query_pairs(2 * r + CONTACT_TOLERANCE,
+                                                    output_type="ndarray")
+        reach = self.config.arena_half_size - r - CONTACT_TOLERANCE
+        walls = np.flatnonzero(np.any(np.abs(self.positions) >= reach, axis=1))
+        return pairs.astype(np.int64).reshape(-1, 2), walls.astype(np.int64)
+
+    def snapshot(self) -> Snapshot:
+        """Copies of the current arrays and the contacts."""
+        pairs, walls = self.contacts()
+        return Snapshot(self.time, self.positions.copy(), self.velocities.copy(),
+                        self.commanded.copy(), pairs, walls)
