@@ -109,9 +109,10 @@ class ScenarioConfig:
     startup_time: float = 2.0
     """Time (s) the leader waits after reset before moving; the Reynolds followers hold still as
     long. Paper: 2.0 s."""
-    tail_time: float = 1.7
-    """Time (s) the episode goes on after the leader finishes its path; 1.7 s makes the paper's
-    case last 74.6 s, the study's T."""
+    tail_time: float = 0.5
+    """Time (s) the episode goes on after the leader finishes its path; 0.5 s makes the paper's
+    case last 74.6 s, the study's T (the leader's own acceleration at the corners and the
+    0.1 s control period add about 1.2 s to the path's nominal 70.9 s)."""
     max_cycles: int | None = None
     """Hard step limit (truncation). None: 3× the path's nominal duration, or 1000 steps for the
     ``external`` leader."""

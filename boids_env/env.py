@@ -59,7 +59,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     ±``init_jitter`` (0.05 m); everything at rest. The leader waits ``startup_time`` (2 s).
 
     ## Episode End
-    No termination. All followers are truncated ``tail_time`` (1.7 s) after the leader finishes
+    No termination. All followers are truncated ``tail_time`` (0.5 s) after the leader finishes
     its path (74.6 s in the study's case), or at ``max_cycles`` steps.
 
     ## Arguments

@@ -36,8 +36,10 @@ ARROW_COLOURS = {  # as the original RViz view
     "separation": (230, 0, 0),
     "leader": (120, 200, 255),
 }
-ARROW_SCALE = 2.0
-"""Metres drawn per newton of force (arrows of a 0.23 N force are 0.46 m long)."""
+ARROW_SCALE = 1.0
+"""Metres drawn per unit of an overlay vector (newton for forces, metre for the leader term)."""
+ARROW_MAX = 0.4
+"""Longest arrow drawn (m), so that the raw leader vector does not cover the arena."""
 
 
 class Renderer:
@@ -110,7 +112,10 @@ class Renderer:
         for name, vectors in overlays.items():
             colour = ARROW_COLOURS.get(name, (90, 90, 90))
             start = self.to_px(followers)
-            end = self.to_px(followers + ARROW_SCALE * np.asarray(vectors))
+            vec = ARROW_SCALE * np.asarray(vectors, dtype=float)
+            length = np.linalg.norm(vec, axis=-1, keepdims=True)
+            vec = np.where(length > ARROW_MAX, vec * ARROW_MAX / np.maximum(length, 1e-12), vec)
+            end = self.to_px(followers + vec)
             for a, b in zip(start, end, strict=True):
                 if tuple(a) != tuple(b):
                     pygame.draw.line(canvas, colour, (int(a[0]), int(a[1])),

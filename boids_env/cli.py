@@ -1,0 +1,84 @@
+"""The ``boids`` command: argument parsing only; each subcommand's code is imported lazily."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from boids_env.config import PATHS, PRESETS
+
+
+def _run_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("run", help="run one episode of a policy, print its metrics, save files",
+                       description="Run one episode: prints V_sep / V_coh / V_align and the "
+                       "extra flock metrics; with --out writes metrics.json, "
+                       "trajectory.parquet and config.json (and a GIF with --video).")
+    p.add_argument("--policy", default="reynolds",
+                   help="reynolds (default), random, an SB3 model .zip, or module:object")
+    p.add_argument("--robots", type=int, default=13, help="group size, leader included (13)")
+    p.add_argument("--leader-speed", type=float, default=0.55, help="m/s (0.55)")
+    p.add_argument("--leader-weight", type=float, default=None,
+                   help="Reynolds leader weight (preset's: 1.0)")
+    p.add_argument("--path", choices=PATHS, default="square", help="leader path (square)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
+                   help="Reynolds parameters (paper)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-cycles", type=int, default=None, help="hard step limit")
+    p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
+    p.add_argument("--no-wrap", action="store_true",
+                   help="the study's unwrapped alignment angle rule")
+    p.add_argument("--out", default="runs/latest", help="output folder (runs/latest)")
+    p.add_argument("--video", action="store_true", help="also write episode.gif")
+    p.add_argument("--bag", action="store_true", help="also write a ROS 1 bag (ros extra)")
+    p.set_defaults(func=_cmd_run)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from eval.run import run  # noqa: PLC0415
+
+    fields = {"robots": args.robots, "leader_speed": args.leader_speed, "path": args.path}
+    if args.max_cycles is not None:
+        fields["max_cycles"] = args.max_cycles
+    if args.arena_half_size is not None:
+        fields["arena_half_size"] = args.arena_half_size
+    if args.no_wrap:
+        fields["wrap_alignment"] = False
+    run(args.policy, out=args.out, seed=args.seed, preset=args.preset,
+        leader_weight=args.leader_weight, video=args.video, bag=args.bag, env_fields=fields)
+    return 0
+
+
+def _bench_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("bench", help="measure env throughput (see bench/)")
+    p.add_argument("--quick", action="store_true", help="fewer sizes and repeats")
+    p.add_argument("--out", default="bench/results.json", help="JSON output")
+    p.set_defaults(func=_cmd_bench)
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from bench.run import main as bench_main  # noqa: PLC0415
+
+    return bench_main(["--out", args.out] + (["--quick"] if args.quick else []))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="boids", description="boids-env: leader-following "
+                                     "boids flock (Akgun's ROS study) as a PettingZoo env")
+    sub = parser.add_subparsers(dest="command", required=True)
+    _run_parser(sub)
+    _bench_parser(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (ValueError, TypeError, FileNotFoundError, ImportError) as exc:
+        print(f"boids {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

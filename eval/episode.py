@@ -1,0 +1,65 @@
+"""One episode of a policy in the env, with optional recording and video frames."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from boids_env.env import BoidsEnv
+from boids_env.recording import Recorder, Recording
+from policies.base import Policy
+
+
+@dataclass
+class EpisodeResult:
+    """What one episode produced."""
+
+    metrics: dict[str, Any]
+    """V_*, per-follower counts and the extra flock metrics (see boids_env.metrics)."""
+    recording: Recording | None
+    frames: list[npt.NDArray[np.uint8]] = field(default_factory=list)
+    wall_time: float = 0.0
+    """Seconds the episode took (stepping, policy and recording; not the video encoding)."""
+
+
+def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
+                options: dict[str, Any] | None = None, record: bool = True,
+                frame_every: int = 0) -> EpisodeResult:
+    """Runs ``policy`` for one whole episode of ``env``.
+
+    Args:
+        env: the environment (``render_mode="rgb_array"`` if frames are wanted).
+        policy: any Policy; if it exposes ``forces`` (the Reynolds policy does), they are drawn.
+        seed: episode seed, passed to both ``env.reset`` and ``policy.reset``.
+        options: reset options (scenario fields for this episode).
+        record: keep the trajectory (needed for the extra flock metrics).
+        frame_every: keep a rendered frame every this many steps (0: none).
+    """
+    start = time.perf_counter()
+    obs, _ = env.reset(seed=seed, options=options)
+    policy.reset(seed)
+    recorder = Recorder() if record else None
+    frames: list[npt.NDArray[np.uint8]] = []
+    if recorder:
+        recorder.capture(env)
+    step = 0
+    while env.agents:
+        actions = policy.act(obs)
+        forces = getattr(policy, "forces", None)
+        if forces:
+            env.overlays = forces
+        if frame_every and step % frame_every == 0:
+            frames.append(env.render())
+        obs, *_ = env.step(actions)
+        step += 1
+        if recorder:
+            recorder.capture(env)
+    if frame_every:
+        frames.append(env.render())
+    recording = recorder.recording(env, seed=seed) if recorder else None
+    metrics = recording.metrics() if recording else env.episode_metrics()
+    return EpisodeResult(metrics, recording, frames, time.perf_counter() - start)

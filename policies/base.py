@@ -1,0 +1,57 @@
+"""The policy protocol shared by the Reynolds controller, random and learned followers."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+
+Observations = Mapping[str, npt.NDArray[np.float32]]
+Actions = dict[str, npt.NDArray[np.float32]]
+
+
+@runtime_checkable
+class Policy(Protocol):
+    """Acts for every live follower at once, from the env's observation dict."""
+
+    def reset(self, seed: int | None = None) -> None:
+        """Starts a new episode (clears internal state, reseeds randomness)."""
+
+    def act(self, observations: Observations) -> Actions:
+        """Maps each agent's observation to its action, keyed like ``observations``."""
+
+
+class BatchPolicy:
+    """Base for policies that compute all followers' actions from one ``(F, D)`` array."""
+
+    def reset(self, seed: int | None = None) -> None:
+        """Starts a new episode."""
+
+    def act_batch(self, obs: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
+        """Actions ``(F, 2)`` for observations ``(F, D)``."""
+        raise NotImplementedError
+
+    def act(self, observations: Observations) -> Actions:
+        agents = list(observations)
+        if not agents:
+            return {}
+        batch = self.act_batch(np.stack([observations[a] for a in agents]))
+        return dict(zip(agents, batch, strict=True))
+
+
+class SB3Predictor:
+    """Exposes a :class:`BatchPolicy` through SB3's ``predict()`` so SB3 tools can run it
+    (``evaluate_policy``, VecEnv loops): rows of the observation batch are followers."""
+
+    def __init__(self, policy: BatchPolicy) -> None:
+        self.policy = policy
+
+    def predict(self, observation: npt.NDArray[np.floating], state: Any = None,
+                episode_start: npt.NDArray[np.bool_] | None = None,
+                deterministic: bool = True) -> tuple[npt.NDArray[np.float32], None]:
+        obs = np.asarray(observation)
+        single = obs.ndim == 1
+        actions = self.policy.act_batch(obs[None] if single else obs)
+        return (actions[0] if single else actions), None

@@ -1,0 +1,1 @@
+"""Stable-Baselines3 training of learned followers (parameter sharing across followers)."""
