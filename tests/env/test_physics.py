@@ -1,0 +1,71 @@
+"""The pymunk world: velocity tracking, contacts, walls, finiteness."""
+
+import numpy as np
+
+from boids_env import parallel_env
+from boids_env.config import WorldConfig
+from boids_env.world import World
+
+
+def test_robot_reaches_commanded_speed_within_0_2_s_and_holds_it():
+    w = World(WorldConfig(), [[0.0, 0.0]])
+    speeds = []
+    for _ in range(30):
+        w.step(np.array([[0.3, 0.4]]))  # 0.5 m/s, diagonal
+        speeds.append(np.linalg.norm(w.velocities[0]))
+    assert abs(speeds[1] - 0.5) < 1e-6, f"speed at 0.2 s: {speeds[1]}"
+    assert np.allclose(speeds[1:], 0.5, atol=1e-6), f"speeds: {speeds}"
+    assert np.allclose(w.velocities[0], [0.3, 0.4], atol=1e-6)
+
+
+def test_pushed_together_robots_do_not_overlap_more_than_5_mm():
+    cfg = WorldConfig()
+    start = np.array([[x, y] for x in np.linspace(-0.5, 0.5, 4) for y in np.linspace(-0.5, 0.5, 4)])
+    w = World(cfg, start)
+    worst = 0.0
+    for _ in range(100):
+        w.step(np.clip(-w.positions, -0.5, 0.5))  # everybody drives at the centre
+        d = np.linalg.norm(w.positions[:, None] - w.positions[None], axis=-1)
+        d[np.diag_indices(len(d))] = np.inf
+        worst = max(worst, 2 * cfg.robot_radius - d.min())
+    assert worst <= 0.005, f"overlap {worst * 1000:.2f} mm"
+    assert len(w.snapshot().contacts) > 0, "the crowd should be touching"
+
+
+def test_long_random_full_speed_run_stays_in_arena_and_finite():
+    e = parallel_env(robots=19, path="external", max_cycles=3000)
+    rng = np.random.default_rng(0)
+    e.reset(seed=0)
+    half = e.config.world.arena_half_size
+    radius = e.config.world.robot_radius
+    step = 0
+    while e.agents:
+        # Mostly pushing outwards at full speed, to press robots into the walls.
+        actions = {a: rng.normal(size=2) for a in e.agents}
+        e.step(actions)
+        snap = e.snapshot()
+        assert np.isfinite(snap.positions).all() and np.isfinite(snap.velocities).all(), step
+        assert np.abs(snap.positions).max() <= half - radius + 0.003, (
+            f"step {step}: robot at {np.abs(snap.positions).max()}")
+        assert np.isfinite(e.state()).all()
+        step += 1
+    assert step == 3000
+
+
+def test_walls_stop_a_robot():
+    w = World(WorldConfig(), [[4.5, 0.0]])
+    for _ in range(40):
+        w.step(np.array([[0.5, 0.0]]))
+    assert 4.9 < w.positions[0, 0] <= 5.0 - 0.036 + 0.002
+    assert list(w.snapshot().wall_contacts) == [0]
+
+
+def test_snapshot_shapes_leader_first():
+    e = parallel_env(robots=7)
+    e.reset(seed=0)
+    s = e.snapshot()
+    assert s.positions.shape == (7, 2) and s.velocities.shape == (7, 2)
+    assert s.commanded.shape == (7, 2)
+    assert np.array_equal(s.positions[0], [0.0, 0.0])
+    s.positions[:] = 99  # a copy: the env is unaffected
+    assert e.snapshot().positions[0, 0] == 0.0
