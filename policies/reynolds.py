@@ -95,6 +95,7 @@ class ReynoldsPolicy(BatchPolicy):
         self.preset = preset
         self.forces: dict[str, FloatArray] = {}
         self._steps = 0
+        self._last_command = np.zeros((0, 2))
 
     def reset(self, seed: int | None = None) -> None:
         self._steps = 0
@@ -115,4 +116,5 @@ class ReynoldsPolicy(BatchPolicy):
                                  layout.slot_valid(slots) > 0.5, own,
                                  obs[:, layout.leader_position], p)
         command, self.forces = reynolds_command(forces, own, p)
+        self._last_command = command
         return command.astype(np.float32)

@@ -1,0 +1,1 @@
+"""Benchmarks (not tests): env throughput against the bare physics and MPE2."""

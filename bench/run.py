@@ -1,0 +1,131 @@
+"""Throughput benchmark: ``python -m bench [--quick] [--out bench/results.json]``.
+
+Measures, after a warm-up, over several repeats (median and spread):
+env-steps/s and agent-steps/s of BoidsEnv with random actions and with the Reynolds policy in
+the loop, the bare-physics ceiling (World.step alone), and MPE2 ``simple_spread`` when the
+``bench`` extra is installed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import statistics
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from boids_env import EnvConfig, ScenarioConfig, parallel_env
+from boids_env.scenario import initial_positions, layout_extent
+from boids_env.world import World
+from policies import ReynoldsPolicy
+
+
+def arena_for(robots: int) -> float:
+    """The paper's 5 m arena, or a larger one that holds the initial grid of ``robots``."""
+    need = layout_extent(ScenarioConfig(robots=robots)) + 0.5
+    return max(5.0, float(np.ceil(need)))
+
+
+def timed(fn: Callable[[], int], repeats: int) -> dict[str, float]:
+    """Runs ``fn`` (returns steps done) ``repeats`` times; steps/s median and spread."""
+    fn()  # warm-up
+    rates = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        steps = fn()
+        rates.append(steps / (time.perf_counter() - t))
+    return {"median": statistics.median(rates), "min": min(rates), "max": max(rates)}
+
+
+def env_loop(robots: int, steps: int, policy: str) -> Callable[[], int]:
+    env = parallel_env(robots=robots, arena_half_size=arena_for(robots), path="external",
+                       max_cycles=10**9)
+    rng = np.random.default_rng(0)
+    reynolds = ReynoldsPolicy(startup_time=0.0)
+
+    def run() -> int:
+        obs, _ = env.reset(seed=0)
+        env.set_leader_command([0.3, 0.0])
+        reynolds.reset(0)
+        limit = env.config.world.max_speed
+        for _ in range(steps):
+            if policy == "random":
+                acts = dict(zip(env.agents, rng.uniform(-limit, limit, (len(env.agents), 2)),
+                                strict=True))
+            else:
+                acts = reynolds.act(obs)
+            obs, *_ = env.step(acts)
+        return steps
+
+    return run
+
+
+def physics_loop(robots: int, steps: int) -> Callable[[], int]:
+    cfg = EnvConfig.from_kwargs(robots=robots, arena_half_size=arena_for(robots))
+    start = initial_positions(cfg.scenario, np.random.default_rng(0))
+    commands = np.random.default_rng(0).uniform(-0.5, 0.5, (steps, robots, 2))
+
+    def run() -> int:
+        world = World(cfg.world, start)
+        for k in range(steps):
+            world.step(commands[k])
+        return steps
+
+    return run
+
+
+def mpe_loop(agents: int, steps: int) -> Callable[[], int] | None:
+    try:
+        from mpe2 import simple_spread_v3  # noqa: PLC0415
+    except ImportError:
+        return None
+    env = simple_spread_v3.parallel_env(N=agents, max_cycles=10**9, continuous_actions=True)
+
+    def run() -> int:
+        env.reset(seed=0)
+        for _ in range(steps):
+            env.step({a: env.action_space(a).sample() for a in env.agents})
+        return steps
+
+    return run
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="fewer sizes and repeats")
+    parser.add_argument("--out", default="bench/results.json")
+    args = parser.parse_args(argv)
+    repeats = 3 if args.quick else 5
+    sizes = [13, 19] if args.quick else [7, 13, 19, 100, 1000]
+    rows: list[dict[str, Any]] = []
+
+    def record(kind: str, n: int, agents: int, rate: dict[str, float]) -> None:
+        rows.append({"kind": kind, "robots": n, "env_steps_per_s": rate,
+                     "agent_steps_per_s": rate["median"] * agents})
+        print(f"{kind:<18} N={n:<5} {rate['median']:>10.0f} env-steps/s "
+              f"({rate['min']:.0f}–{rate['max']:.0f})  {rate['median'] * agents:>12.0f} "
+              f"agent-steps/s", flush=True)
+
+    for n in sizes:
+        steps = 400 if n <= 100 else 40
+        record("physics", n, n, timed(physics_loop(n, steps), repeats))
+        record("env random", n, n - 1, timed(env_loop(n, steps, "random"), repeats))
+        record("env reynolds", n, n - 1, timed(env_loop(n, steps, "reynolds"), repeats))
+    for n in [6, 12, 18] if not args.quick else [18]:
+        loop = mpe_loop(n, 200)
+        if loop is None:
+            print("mpe2 not installed (pip install 'boids-env[bench]'): MPE2 skipped")
+            break
+        record("mpe2 simple_spread", n, n, timed(loop, repeats))
+    out = {"machine": {"python": platform.python_version(), "cpu": platform.processor() or
+                       platform.machine(), "cores": __import__("os").cpu_count()},
+           "results": rows}
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(out, indent=2))
+    print(f"wrote {args.out}")
+    return 0

@@ -1,0 +1,41 @@
+"""`boids run` end to end in a subprocess, with a short episode."""
+
+import json
+import os
+import subprocess
+import sys
+
+import imageio.v3 as iio
+import pytest
+
+from boids_env.recording import Recording
+
+
+@pytest.mark.slow
+def test_boids_run_writes_every_file(tmp_path):
+    out = tmp_path / "run"
+    env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
+    proc = subprocess.run(
+        [sys.executable, "-m", "boids_env.cli", "run", "--robots", "7", "--leader-speed", "0.6",
+         "--max-cycles", "40", "--seed", "3", "--video", "--out", str(out)],
+        capture_output=True, text=True, env=env, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "V_sep" in proc.stdout and "V_align" in proc.stdout
+    files = {p.name for p in out.iterdir()}
+    assert {"metrics.json", "trajectory.parquet", "config.json", "episode.gif"} <= files
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert {"V_sep", "V_coh", "V_align", "min_distance", "collisions"} <= metrics.keys()
+    assert metrics["steps"] == 40
+    config = json.loads((out / "config.json").read_text())
+    assert config["env"]["scenario"]["robots"] == 7 and config["seed"] == 3
+    rec = Recording.from_parquet(out / "trajectory.parquet")
+    assert rec.metrics()["V_align"] == metrics["V_align"]
+    frames = iio.imread(out / "episode.gif")
+    assert frames.ndim == 4 and frames.shape[0] >= 20
+
+
+def test_boids_run_bad_argument_is_a_clear_error(tmp_path, capsys):
+    from boids_env.cli import main
+
+    assert main(["run", "--leader-speed", "-1", "--out", str(tmp_path)]) == 2
+    assert "leader_speed must be in" in capsys.readouterr().err

@@ -1,0 +1,152 @@
+"""Bad input raises a clear error naming the problem, and never corrupts the env's state."""
+
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+from boids_env import EnvConfig, parallel_env, reynolds_params
+from boids_env.recording import Recording
+
+
+@pytest.mark.parametrize("field, value, allowed", [
+    ("robots", 1, r"\[2, 10000\]"), ("robots", 13.5, "integer"), ("robots", True, "integer"),
+    ("leader_speed", 0.0, r"\(0.0, 2.0\] m/s"), ("leader_speed", float("nan"), "m/s"),
+    ("leader_speed", "fast", "number"), ("robot_radius", -0.01, "m"),
+    ("robot_mass", 0, "kg"), ("dt", 2.0, "s"), ("substeps", 0, r"\[1, 1000\]"),
+    ("horizon", 0.0, "m"), ("neighbours", -1, r"\[0, 1024\]"), ("path", "spiral", "square"),
+    ("init_jitter", 0.5, "m"), ("separation_threshold", -1, "m"),
+    ("alignment_threshold_deg", 400, "degrees"), ("wrap_alignment", "yes", "True or False"),
+    ("max_cycles", 0, r"\[1, "), ("waypoints", [(1, 2, 3)], "pairs"),
+])
+def test_bad_config_values_name_field_and_range(field, value, allowed):
+    with pytest.raises(ValueError, match=field) as info:
+        parallel_env(**{field: value})
+    assert re.search(allowed, str(info.value)), f"{info.value} does not state {allowed}"
+
+
+def test_unknown_config_field_is_a_type_error():
+    with pytest.raises(TypeError, match="unknown config field.*leader_sped"):
+        parallel_env(leader_sped=0.5)
+    with pytest.raises(ValueError, match="preset must be one of"):
+        reynolds_params("fancy")
+    with pytest.raises(ValueError, match="leader_weight"):
+        reynolds_params(leader_weight=-1)
+    with pytest.raises(ValueError, match="waypoints must hold"):
+        EnvConfig.from_kwargs(path="waypoints")
+
+
+def stepped_env(steps=10):
+    e = parallel_env(robots=5)
+    e.reset(seed=0)
+    for _ in range(steps):
+        e.step({a: np.full(2, 0.1) for a in e.agents})
+    return e
+
+
+def good(e):
+    return {a: np.full(2, 0.2) for a in e.agents}
+
+
+BAD_ACTIONS = [
+    (lambda e: {**good(e), "follower_1": np.array([np.nan, 0.0])}, ValueError, "finite"),
+    (lambda e: {**good(e), "follower_2": np.array([np.inf, 0.0])}, ValueError, "follower_2"),
+    (lambda e: {**good(e), "follower_1": np.zeros(3)}, ValueError, "follower_1 must be 2"),
+    (lambda e: {**good(e), "follower_1": "up"}, ValueError, "follower_1 must be 2"),
+    (lambda e: {**good(e), "follower_9": np.zeros(2)}, KeyError, "follower_9"),
+    (lambda e: {a: v for a, v in good(e).items() if a != "follower_3"}, KeyError, "follower_3"),
+    (lambda e: [np.zeros(2)] * 4, TypeError, "dict"),
+]
+
+
+@pytest.mark.parametrize("make, error, message", BAD_ACTIONS)
+def test_bad_actions_raise_and_leave_state_untouched(make, error, message):
+    e, twin = stepped_env(), stepped_env()
+    with pytest.raises(error, match=message):
+        e.step(make(e))
+    assert np.array_equal(e.snapshot().positions, twin.snapshot().positions)
+    a, b = e.step(good(e)), twin.step(good(twin))
+    assert all(np.array_equal(a[0][k], b[0][k]) for k in a[0])
+    assert a[1] == b[1]
+
+
+def test_out_of_range_actions_are_clipped_to_the_speed_limit():
+    e = stepped_env(0)
+    e.step({a: np.array([3.0, 4.0]) for a in e.agents})
+    cmd = e.snapshot().commanded[1:]
+    assert np.allclose(np.linalg.norm(cmd, axis=1), 0.5)
+    assert np.allclose(cmd, [0.3, 0.4])
+
+
+def test_step_before_reset():
+    with pytest.raises(RuntimeError, match="before reset"):
+        parallel_env().step({})
+    with pytest.raises(RuntimeError, match="reset"):
+        parallel_env().snapshot()
+
+
+def test_step_after_the_episode_ended():
+    e = parallel_env(robots=3, max_cycles=5)
+    e.reset(seed=0)
+    for _ in range(5):
+        e.step({a: np.zeros(2) for a in e.agents})
+    assert e.agents == []
+    assert e.step({}) == ({}, {}, {}, {}, {})
+    with pytest.raises(RuntimeError, match="episode has ended"):
+        e.step({"follower_1": np.zeros(2)})
+    e.reset(seed=0)
+    assert len(e.agents) == 2, "usable again after reset"
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "7", True])
+def test_bad_seeds(seed):
+    e = stepped_env()
+    before = e.snapshot().positions
+    with pytest.raises(ValueError, match="seed must be a non-negative integer"):
+        e.reset(seed=seed)
+    assert np.array_equal(before, e.snapshot().positions)
+    assert e.agents, "the episode goes on"
+
+
+def test_bad_options():
+    e = stepped_env()
+    before = e.snapshot().positions
+    with pytest.raises(ValueError, match="leader_speed"):
+        e.reset(seed=1, options={"leader_speed": -1})
+    with pytest.raises(ValueError, match="cannot change robots"):
+        e.reset(seed=1, options={"robots": 7})
+    with pytest.raises(TypeError, match="options must be a dict"):
+        e.reset(seed=1, options=[("leader_speed", 0.5)])
+    assert np.array_equal(before, e.snapshot().positions)
+    with pytest.warns(UserWarning, match="unknown option"):
+        e.reset(seed=1, options={"leader_sped": 0.5})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        e.reset(seed=1, options={"leader_speed": 0.6, "path": "circle"})
+    assert e.episode_config.scenario.leader_speed == 0.6
+    assert e.config.scenario.leader_speed == 0.55, "options last one episode"
+    e.reset(seed=1)
+    assert e.episode_config.scenario.path == "square"
+
+
+def test_unknown_agent_spaces():
+    e = parallel_env(robots=3)
+    with pytest.raises(KeyError, match="unknown agent 'leader'"):
+        e.observation_space("leader")
+    with pytest.raises(KeyError, match="follower_3"):
+        e.action_space("follower_3")
+
+
+def test_bad_render_mode():
+    with pytest.raises(ValueError, match="render_mode must be one of"):
+        parallel_env(render_mode="ascii")
+
+
+def test_unreadable_recording(tmp_path):
+    junk = tmp_path / "junk.parquet"
+    junk.write_bytes(b"not parquet at all")
+    with pytest.raises(ValueError, match="cannot read recording"):
+        Recording.from_parquet(junk)
+    with pytest.raises(FileNotFoundError):
+        Recording.from_parquet(tmp_path / "missing.parquet")

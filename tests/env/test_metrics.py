@@ -1,0 +1,87 @@
+"""Violation metrics on hand-computed cases, and the reward/metric identity in the env."""
+
+import numpy as np
+import pytest
+
+from boids_env import metrics, parallel_env
+from boids_env.config import MetricsConfig
+
+
+def flags(leader_pos, follower_pos, leader_cmd, follower_cmd, **kw):
+    pos = np.array([leader_pos, *follower_pos], dtype=float)
+    cmd = np.array([leader_cmd, *follower_cmd], dtype=float)
+    return metrics.violation_flags(pos, cmd, **kw)
+
+
+def test_separation_and_cohesion_thresholds_against_the_leader():
+    f = flags([1, 1], [[1, 1.69], [1, 1.71], [1, 3.25], [1, 3.26]], [0, 0], [[0, 0]] * 4)
+    assert f["separation"].tolist() == [True, False, False, False]
+    assert f["cohesion"].tolist() == [False, False, False, True]
+
+
+def test_alignment_uses_commanded_directions():
+    # leader heading 0°; followers at 45° (not > 45), 46°, 90°, zero command (0°)
+    c = [[1, 1], [np.cos(np.radians(46)), np.sin(np.radians(46))], [0, 1], [0, 0]]
+    f = flags([0, 0], [[1, 0]] * 4, [0.5, 0], c)
+    assert f["alignment"].tolist() == [False, True, True, False]
+
+
+def test_wrapped_and_unwrapped_alignment_differ_at_179_vs_minus_179():
+    lead = [np.cos(np.radians(179)), np.sin(np.radians(179))]
+    foll = [np.cos(np.radians(-179)), np.sin(np.radians(-179))]
+    wrapped = flags([0, 0], [[1, 0]], lead, [foll])["alignment"]
+    unwrapped = flags([0, 0], [[1, 0]], lead, [foll], wrap_alignment=False)["alignment"]
+    assert wrapped.tolist() == [False]  # 2° apart
+    assert unwrapped.tolist() == [True]  # |179 − (−179)| = 358° > 45°
+    assert metrics.angle_difference_deg(np.array(179.0), np.array(-179.0)) == pytest.approx(2)
+
+
+def test_episode_violations_sum_over_followers():
+    # 4 samples, 2 followers: follower 1 violates separation twice, follower 2 once.
+    sep = np.array([[1, 0], [1, 1], [0, 0], [0, 0]], dtype=bool)
+    zero = np.zeros_like(sep)
+    v = metrics.episode_violations({"separation": sep, "cohesion": zero, "alignment": zero})
+    assert v == {"V_sep": 0.75, "V_coh": 0.0, "V_align": 0.0}  # (2 + 1) · 0.1 s / 0.4 s
+    counts = metrics.violation_counts({"separation": sep, "cohesion": zero, "alignment": zero})
+    assert counts["count_sep"].tolist() == [2, 1]
+
+
+def test_extra_metrics_on_hand_made_trajectory():
+    pos = np.array([[[0, 0], [1, 0], [3, 0]], [[0, 0], [0.07, 0], [3, 0]],
+                    [[0, 0], [0.5, 0], [3, 0]], [[0, 0], [0.07, 0], [3, 0]]], dtype=float)
+    assert metrics.pairwise_min_distance(pos).tolist() == pytest.approx([1, 0.07, 0.5, 0.07])
+    assert metrics.collision_count(pos, radius=0.036) == 2  # two separate touches
+    vel = np.array([[1, 0], [1, 0], [0, 1]], dtype=float)
+    assert metrics.polarization(vel) == pytest.approx(np.hypot(2, 1) / 3)
+    assert metrics.polarization(np.zeros((3, 2))) == 0.0
+    assert metrics.leader_distance(pos[0]).tolist() == [1, 3]
+
+
+def test_summed_episode_reward_equals_minus_total_violation_times_T():
+    e = parallel_env(robots=7, leader_speed=0.6)
+    rng = np.random.default_rng(1)
+    e.reset(seed=1)
+    total = 0.0
+    terms = {"reward_separation": 0.0, "reward_cohesion": 0.0, "reward_alignment": 0.0}
+    while e.agents:
+        _, rew, _, _, info = e.step({a: rng.uniform(-0.5, 0.5, 2) for a in e.agents})
+        total += sum(rew.values())
+        for a in info:
+            for k in terms:
+                terms[k] += info[a][k]
+    m = e.episode_metrics()
+    T = m["duration"]
+    assert m["V_sep"] + m["V_coh"] + m["V_align"] > 0
+    assert total == pytest.approx(-(m["V_sep"] + m["V_coh"] + m["V_align"]) * T, rel=1e-12)
+    assert terms["reward_separation"] == pytest.approx(-m["V_sep"] * T)
+    assert terms["reward_alignment"] == pytest.approx(-m["V_align"] * T)
+
+
+def test_reward_weights_scale_terms():
+    f = {"separation": np.array([True]), "cohesion": np.array([True]),
+         "alignment": np.array([False])}
+    cfg = MetricsConfig(reward_separation=2.0, reward_cohesion=0.5)
+    t = metrics.reward_terms(f, cfg, 0.1)
+    assert t["separation"].tolist() == [pytest.approx(-0.2)]
+    assert t["cohesion"].tolist() == [pytest.approx(-0.05)]
+    assert t["alignment"].tolist() == [0.0]

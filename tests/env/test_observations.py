@@ -1,0 +1,69 @@
+"""Observation layout, neighbour search (all pairs and KD-tree) and bounds."""
+
+import numpy as np
+import pytest
+
+from boids_env import observations as ob
+from boids_env import parallel_env
+
+
+def brute_neighbours(pos, horizon, k):
+    rows = []
+    for i in range(1, len(pos)):
+        d = np.linalg.norm(pos - pos[i], axis=1)
+        cand = [j for j in range(len(pos)) if j != i and 0 < d[j] <= horizon]
+        cand.sort(key=lambda j: (d[j], j))
+        rows.append((cand[:k] + [-1] * k)[:k])
+    return np.array(rows)
+
+
+@pytest.mark.parametrize("n", [5, 40, 150])
+def test_neighbours_match_brute_force(n):
+    rng = np.random.default_rng(n)
+    pos = rng.uniform(-2, 2, (n, 2))
+    index, dist = ob.nearest_neighbours(pos, horizon=1.0, k=6)
+    assert np.array_equal(index, brute_neighbours(pos, 1.0, 6))
+    assert np.all(np.diff(dist, axis=1)[np.isfinite(dist[:, 1:])] >= 0), "nearest first"
+
+
+def test_kdtree_and_all_pairs_agree(monkeypatch):
+    pos = np.random.default_rng(0).uniform(-3, 3, (60, 2))
+    a = ob.nearest_neighbours(pos, 1.0, 10)
+    monkeypatch.setattr(ob, "KD_TREE_MIN_ROBOTS", 2)
+    b = ob.nearest_neighbours(pos, 1.0, 10)
+    assert np.array_equal(a[0], b[0])
+    assert np.allclose(a[1], b[1])
+
+
+def test_observation_layout_contents():
+    pos = np.array([[0.0, 0.0], [0.5, 0.0], [0.5, 0.9], [3.0, 3.0]])
+    vel = np.array([[0.1, 0.2], [0.0, 0.3], [-0.1, 0.0], [0.2, 0.2]])
+    layout = ob.ObservationLayout(3)
+    obs = ob.build_observations(pos, vel, layout, horizon=1.0, velocity_bound=3.0,
+                                arena_half_size=5.0)
+    assert obs.shape == (3, 6 + 15) and obs.dtype == np.float32
+    f1 = obs[0]
+    assert f1[layout.own_velocity].tolist() == pytest.approx([0.0, 0.3])
+    assert f1[layout.leader_position].tolist() == pytest.approx([-0.5, 0.0])
+    assert f1[layout.leader_velocity].tolist() == pytest.approx([0.1, 0.2])
+    slots = layout.slots(obs)
+    # follower 1: leader at 0.5 m, then robot 2 at 0.9 m; robot 3 out of range
+    assert layout.slot_valid(slots[0]).tolist() == [1, 1, 0]
+    assert layout.slot_position(slots[0])[0].tolist() == pytest.approx([-0.5, 0.0])
+    assert layout.slot_position(slots[0])[1].tolist() == pytest.approx([0.0, 0.9])
+    assert layout.slot_velocity(slots[0])[1].tolist() == pytest.approx([-0.1, 0.0])
+    assert slots[0, 2].tolist() == [0, 0, 0, 0, 0]
+    assert layout.slot_valid(slots[2]).tolist() == [0, 0, 0], "robot 3 is alone"
+
+
+def test_observations_stay_in_space_along_random_rollouts():
+    e = parallel_env(robots=19, neighbours=8)
+    rng = np.random.default_rng(0)
+    obs, _ = e.reset(seed=0)
+    step = 0
+    while e.agents and step < 400:
+        for a, o in obs.items():
+            assert e.observation_space(a).contains(o), f"step {step}, {a}: {o}"
+        obs, *_ = e.step({a: rng.uniform(-1, 1, 2) for a in e.agents})
+        step += 1
+    assert e.state_space.contains(e.state())

@@ -1,0 +1,96 @@
+"""The Reynolds policy from observations equals a full-state reference, and it flocks."""
+
+import numpy as np
+import pytest
+
+from boids_env import parallel_env, reynolds_params
+from boids_env.observations import ObservationLayout, build_observations
+from eval.episode import run_episode
+from policies import ReynoldsPolicy
+
+
+def clip(x, limit):
+    n = np.linalg.norm(x)
+    return x * limit / n if n > limit else x
+
+
+def reference(pos, vel, p):
+    """DESIGN section 3 written straight from full state, one follower at a time."""
+    out = []
+    for i in range(1, len(pos)):
+        nbrs = [j for j in range(len(pos))
+                if j != i and 0 < np.linalg.norm(pos[j] - pos[i]) <= p.horizon]
+        coh = sep = ali = np.zeros(2)
+        if nbrs:
+            coh = (p.max_force / p.horizon) * np.mean([pos[j] - pos[i] for j in nbrs], axis=0)
+            close = [j for j in nbrs if np.linalg.norm(pos[j] - pos[i]) < p.desired_separation]
+            if close:
+                s = np.mean([-(pos[j] - pos[i]) / np.linalg.norm(pos[j] - pos[i]) ** 3
+                             for j in close], axis=0)
+                sep = clip(s, 2 * p.max_force)
+            u = np.sum([vel[j] for j in nbrs], axis=0)
+            u = np.array([1.0, 0.0]) if np.linalg.norm(u) == 0 else u / np.linalg.norm(u)
+            ali = clip(u * p.max_speed - vel[i], p.max_force)
+        lead = pos[0] - pos[i]
+        f = clip(p.cohesion_weight * coh + p.separation_weight * sep + p.alignment_weight * ali
+                 + p.leader_weight * lead, p.max_force)
+        out.append(clip(vel[i] + f / p.mass * p.dt, p.max_speed))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("preset", ["paper", "boids_ros"])
+@pytest.mark.parametrize("robots, leader_weight", [(7, 1.0), (13, 1.1), (19, 1.2)])
+def test_from_observations_equals_full_state_reference(preset, robots, leader_weight):
+    rng = np.random.default_rng(robots)
+    p = reynolds_params(preset, leader_weight=leader_weight)
+    layout = ObservationLayout(18)
+    for trial in range(20):
+        # Dyadic values are exact in float32, so the observation loses nothing.
+        pos = np.round(rng.uniform(-1.2, 1.2, (robots, 2)) * 1024) / 1024
+        vel = np.round(rng.uniform(-0.5, 0.5, (robots, 2)) * 1024) / 1024
+        obs = build_observations(pos, vel, layout, 1.0, 3.0, 5.0)
+        policy = ReynoldsPolicy(preset, leader_weight=leader_weight, startup_time=0.0)
+        got = policy.act_batch(obs).astype(np.float64)
+        want = reference(pos, vel, p)
+        assert np.abs(got - want.astype(np.float32)).max() <= 1e-9, f"trial {trial}"
+        assert np.abs(policy._last_command - want).max() <= 1e-9, f"trial {trial}"
+
+
+def test_holds_still_during_startup_then_moves():
+    e = parallel_env(robots=7)
+    pol = ReynoldsPolicy()
+    obs, _ = e.reset(seed=0)
+    pol.reset(0)
+    for step in range(25):
+        act = pol.act(obs)
+        still = all(np.all(v == 0) for v in act.values())
+        assert still == (step < 20), f"step {step}"
+        obs, *_ = e.step(act)
+
+
+def test_paper_flock_follows_the_leader_round_the_square():
+    e = parallel_env()
+    result = run_episode(e, ReynoldsPolicy(), seed=0)
+    rec = result.recording
+    dist = np.linalg.norm(rec.positions[1:, 1:] - rec.positions[1:, :1], axis=-1)
+    mean_dist = dist.mean(axis=1)
+    # measured (seed 0): mean distance under 2.25 m in 100% of samples, max final 1.6 m
+    assert (mean_dist < 2.25).mean() > 0.9, (mean_dist < 2.25).mean()
+    assert dist[-1].max() < 2.25, f"left behind at the end: {dist[-1].max():.2f} m"
+    assert result.metrics["collisions"] <= 5, result.metrics["collisions"]
+    assert result.metrics["min_distance"] > 2 * 0.036
+
+
+@pytest.mark.slow
+def test_leader_speed_trade_off_of_the_study():
+    def v(speed):
+        out = []
+        for seed in range(5):
+            m = run_episode(parallel_env(leader_speed=speed), ReynoldsPolicy(), seed=seed,
+                            record=False).metrics
+            out.append((m["V_sep"], m["V_coh"]))
+        return np.mean(out, axis=0)
+
+    slow, fast = v(0.5), v(0.6)
+    assert slow[0] > fast[0], f"V_sep 0.5 m/s {slow[0]} vs 0.6 m/s {fast[0]}"
+    assert fast[1] > slow[1], f"V_coh 0.6 m/s {fast[1]} vs 0.5 m/s {slow[1]}"
