@@ -81,7 +81,7 @@ def physics_loop(robots: int, steps: int) -> Callable[[], int]:
 
 def mpe_loop(agents: int, steps: int) -> Callable[[], int] | None:
     try:
-        from mpe2 import simple_spread_v3  # noqa: PLC0415
+        from mpe2 import simple_spread_v3
     except ImportError:
         return None
     env = simple_spread_v3.parallel_env(N=agents, max_cycles=10**9, continuous_actions=True)

@@ -35,7 +35,7 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from eval.run import run  # noqa: PLC0415
+    from eval.run import run
 
     fields = {"robots": args.robots, "leader_speed": args.leader_speed, "path": args.path}
     if args.max_cycles is not None:
@@ -57,7 +57,7 @@ def _bench_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from bench.run import main as bench_main  # noqa: PLC0415
+    from bench.run import main as bench_main
 
     return bench_main(["--out", args.out] + (["--quick"] if args.quick else []))
 

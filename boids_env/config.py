@@ -239,7 +239,7 @@ class EnvConfig:
             if not isinstance(getattr(self, name), cls):
                 raise TypeError(f"{name} must be a {cls.__name__}, got "
                                 f"{type(getattr(self, name)).__name__}")
-        from boids_env.scenario import check_fits  # noqa: PLC0415 (scenario imports config)
+        from boids_env.scenario import check_fits
 
         check_fits(self)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping
 from dataclasses import fields
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -46,7 +46,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     | 0:2 | own velocity | m/s | ±velocity_bound |
     | 2:4 | leader position relative to self | m | ±2·arena_half_size |
     | 4:6 | leader velocity | m/s | ±velocity_bound |
-    | 6+5k : 11+5k | neighbour k (nearest first, within horizon, leader included): relative position, velocity, valid flag | m, m/s, 1 | ±horizon, ±velocity_bound, [0, 1] |
+    | 6+5k : 11+5k | slot k: relative position, velocity, valid | m, m/s, 1 | ±horizon, ±vb, [0,1] |
+
+    Slots hold the robots within ``horizon`` (the leader included), nearest first.
 
     ## Rewards
     Per follower and step: −(w_sep·[sep] + w_coh·[coh] + w_ali·[ali]) · dt, the flags of
@@ -72,8 +74,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     - v0: first release.
     """
 
-    metadata = {"name": "boids_leader_v0", "render_modes": ["human", "rgb_array"],
-                "render_fps": 10, "is_parallelizable": True}
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "boids_leader_v0", "render_modes": ["human", "rgb_array"], "render_fps": 10,
+        "is_parallelizable": True}
 
     def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None,
                  **kwargs: Any) -> None:
@@ -298,7 +301,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if self._world is None:
             raise RuntimeError("render() called before reset()")
         if self._renderer is None:
-            from boids_env.render import Renderer  # noqa: PLC0415 (pygame is an extra)
+            from boids_env.render import Renderer
 
             self._renderer = Renderer(self.render_mode, self.config.world.arena_half_size)
         return self._renderer.draw(self)

@@ -50,8 +50,8 @@ class Recording:
 
     def to_parquet(self, path: str | Path) -> None:
         """Writes the tidy table with the config in the schema metadata."""
-        import pyarrow as pa  # noqa: PLC0415
-        import pyarrow.parquet as pq  # noqa: PLC0415
+        import pyarrow as pa
+        import pyarrow.parquet as pq
 
         steps, n = self.positions.shape[:2]
         cols = {
@@ -70,7 +70,7 @@ class Recording:
     @classmethod
     def from_parquet(cls, path: str | Path) -> Recording:
         """Reads a file written by :meth:`to_parquet`; a clear ``ValueError`` otherwise."""
-        import pyarrow.parquet as pq  # noqa: PLC0415
+        import pyarrow.parquet as pq
 
         try:
             table = pq.read_table(str(path))

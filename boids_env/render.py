@@ -78,7 +78,7 @@ class Renderer:
         canvas = self._canvas
         canvas.fill(BACKGROUND)
         corner = self.to_px(np.array([-self.half, self.half]))
-        side = int(round(2 * self.half * self.scale))
+        side = round(2 * self.half * self.scale)
         pygame.draw.rect(canvas, WALL, (int(corner[0]), int(corner[1]), side, side), 2)
         pos = self.to_px(world.positions)
         if world.steps < self._last_steps or world.steps == 0:
@@ -93,7 +93,7 @@ class Renderer:
             r = int(env.episode_config.observation.horizon * self.scale)
             for x, y in pos[1:]:
                 pygame.draw.circle(canvas, HORIZON, (int(x), int(y)), r, 1)
-        radius = max(3, int(round(env.config.world.robot_radius * self.scale)))
+        radius = max(3, round(env.config.world.robot_radius * self.scale))
         for x, y in pos[1:]:
             pygame.draw.circle(canvas, FOLLOWER, (int(x), int(y)), radius)
         pygame.draw.circle(canvas, LEADER, (int(pos[0, 0]), int(pos[0, 1])), radius + 1)

@@ -59,12 +59,12 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, seed: int = 
         result.recording.extra.update(policy=policy, preset=preset)
         result.recording.to_parquet(out / "trajectory.parquet")
         if video:
-            import imageio.v3 as iio  # noqa: PLC0415 (render extra)
+            import imageio.v3 as iio
 
             iio.imwrite(out / "episode.gif", result.frames,
                         duration=int(1000 * env.config.world.dt * frame_every / 2), loop=0)
         if bag:
-            from boids_env.rosbag import write_bag  # noqa: PLC0415 (ros extra)
+            from boids_env.rosbag import write_bag
 
             write_bag(result.recording, out / "episode.bag")
         if not quiet:

@@ -33,7 +33,7 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         if not Path(spec).is_file():
             raise FileNotFoundError(f"policy model file not found: {spec}")
         try:
-            from policies.sb3_policy import SB3Policy  # noqa: PLC0415
+            from policies.sb3_policy import SB3Policy
         except ImportError as exc:
             raise ImportError("loading an SB3 model needs: pip install 'boids-env[train]'"
                               ) from exc

@@ -27,7 +27,7 @@ def test_bad_config_values_name_field_and_range(field, value, allowed):
 
 
 def test_unknown_config_field_is_a_type_error():
-    with pytest.raises(TypeError, match="unknown config field.*leader_sped"):
+    with pytest.raises(TypeError, match=r"unknown config field.*leader_sped"):
         parallel_env(leader_sped=0.5)
     with pytest.raises(ValueError, match="preset must be one of"):
         reynolds_params("fancy")

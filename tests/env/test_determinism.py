@@ -56,9 +56,9 @@ def test_numpy_integer_seed_equals_python_int():
 
 def test_different_seeds_differ():
     e = parallel_env(robots=13)
-    o1, _ = e.reset(seed=1)
+    _o1, _ = e.reset(seed=1)
     p1 = e.snapshot().positions
-    o2, _ = e.reset(seed=2)
+    _o2, _ = e.reset(seed=2)
     p2 = e.snapshot().positions
     assert not np.array_equal(p1, p2)
     assert np.array_equal(p1[0], p2[0]), "the leader always starts at the origin"

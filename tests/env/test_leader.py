@@ -38,14 +38,14 @@ def test_square_visits_corners_in_order_at_speed(speed):
 
 
 def test_default_episode_lasts_about_the_studys_74_6_s():
-    path, times = drive(parallel_env(robots=13))
+    _path, times = drive(parallel_env(robots=13))
     assert 70.0 <= times[-1] <= 78.0, times[-1]
 
 
 @pytest.mark.parametrize("path", ["circle", "figure_eight", "random_waypoints"])
 def test_other_paths_finish_inside_the_arena(path):
     e = parallel_env(robots=2, path=path)
-    track, times = drive(e, exact_speed=path == "random_waypoints")
+    track, _times = drive(e, exact_speed=path == "random_waypoints")
     assert e.leader.finished
     assert np.abs(track).max() < 5.0
     travelled = np.linalg.norm(np.diff(track, axis=0), axis=1).sum()
