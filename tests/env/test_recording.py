@@ -22,3 +22,28 @@ def test_parquet_round_trip_reproduces_metrics(tmp_path):
         assert np.array_equal(getattr(back, name), getattr(rec, name)), name
     assert back.metrics() == rec.metrics()
     assert back.extra == {"seed": 2}
+
+
+def test_ros_bag_round_trip_reproduces_metrics(tmp_path):
+    from boids_env.rosbag import read_bag, write_bag
+
+    env = parallel_env(robots=7, max_cycles=150)
+    rec = run_episode(env, ReynoldsPolicy(), seed=1).recording
+    write_bag(rec, tmp_path / "ep.bag")
+    back = read_bag(tmp_path / "ep.bag")
+    assert back.positions.shape == rec.positions.shape
+    assert np.array_equal(back.positions, rec.positions)
+    assert np.array_equal(back.commanded, rec.commanded)
+    assert np.allclose(back.time, rec.time, atol=1e-9)
+    assert back.metrics() == rec.metrics()
+
+
+def test_unreadable_bag(tmp_path):
+    import pytest
+
+    from boids_env.rosbag import read_bag
+
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"#ROSBAG V2.0\nnot really")
+    with pytest.raises(ValueError, match="cannot read ROS bag"):
+        read_bag(junk)

@@ -1,0 +1,112 @@
+"""Recordings to and from ROS 1 bags, as the original ROS system recorded its runs.
+
+Topics ``/robot_k/odom`` (nav_msgs/Odometry: position and measured velocity) and
+``/robot_k/cmd_vel`` (geometry_msgs/Twist: the commanded velocity), robot 0 the leader, one
+message per robot per control step, stamped with the episode time. Pure Python through the
+``rosbags`` package (``pip install 'boids-env[ros]'``); no ROS install needed.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from boids_env.config import EnvConfig
+from boids_env.recording import Recording
+
+try:
+    from rosbags.rosbag1 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+except ImportError as exc:  # pragma: no cover - depends on the install
+    raise ImportError("ROS bag support needs rosbags: pip install 'boids-env[ros]'") from exc
+
+ODOM = "nav_msgs/msg/Odometry"
+TWIST = "geometry_msgs/msg/Twist"
+_TOPIC = re.compile(r"^/robot_(\d+)/(odom|cmd_vel)$")
+
+
+def write_bag(recording: Recording, path: str | Path) -> None:
+    """Writes ``recording`` as a ROS 1 bag at ``path`` (which must not exist)."""
+    path = Path(path)
+    if path.exists():
+        raise FileExistsError(f"bag already exists: {path}")
+    store = get_typestore(Stores.ROS1_NOETIC)
+    t = store.types
+    zero36 = np.zeros(36, dtype=np.float64)
+    quat = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
+    n = recording.positions.shape[1]
+    with Writer(path) as writer:
+        odom = [writer.add_connection(f"/robot_{k}/odom", ODOM, typestore=store)
+                for k in range(n)]
+        cmd = [writer.add_connection(f"/robot_{k}/cmd_vel", TWIST, typestore=store)
+               for k in range(n)]
+        for step, time in enumerate(recording.time):
+            ns = round(float(time) * 1e9)
+            stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            for k in range(n):
+                x, y = (float(v) for v in recording.positions[step, k])
+                vx, vy = (float(v) for v in recording.velocities[step, k])
+                cx, cy = (float(v) for v in recording.commanded[step, k])
+                header = t["std_msgs/msg/Header"](seq=step, stamp=stamp, frame_id="map")
+                pose = t["geometry_msgs/msg/Pose"](
+                    position=t["geometry_msgs/msg/Point"](x=x, y=y, z=0.0), orientation=quat)
+                twist = _twist(t, vx, vy)
+                msg = t[ODOM](
+                    header=header, child_frame_id=f"robot_{k}",
+                    pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero36),
+                    twist=t["geometry_msgs/msg/TwistWithCovariance"](twist=twist,
+                                                                     covariance=zero36))
+                writer.write(odom[k], ns, store.serialize_ros1(msg, ODOM))
+                writer.write(cmd[k], ns, store.serialize_ros1(_twist(t, cx, cy), TWIST))
+
+
+def _twist(types: dict, vx: float, vy: float) -> object:
+    vec = types["geometry_msgs/msg/Vector3"]
+    return types[TWIST](linear=vec(x=vx, y=vy, z=0.0), angular=vec(x=0.0, y=0.0, z=0.0))
+
+
+def read_bag(path: str | Path, config: EnvConfig | None = None) -> Recording:
+    """Reads a bag with ``/robot_k/odom`` and ``/robot_k/cmd_vel`` topics into a Recording.
+
+    Samples are aligned by message order per robot (the k-th odom of every robot is sample k);
+    ``config`` gives the thresholds and dt for the metrics (default: the study's, with the
+    group size taken from the bag). Raises ``ValueError`` for a file that is not such a bag.
+    """
+    store = get_typestore(Stores.ROS1_NOETIC)
+    odom: dict[int, list[tuple[int, float, float, float, float]]] = {}
+    cmd: dict[int, list[tuple[float, float]]] = {}
+    try:
+        with Reader(Path(path)) as reader:
+            for conn, stamp, raw in reader.messages():
+                match = _TOPIC.match(conn.topic)
+                if not match:
+                    continue
+                k = int(match.group(1))
+                msg = store.deserialize_ros1(raw, conn.msgtype)
+                if match.group(2) == "odom":
+                    p, v = msg.pose.pose.position, msg.twist.twist.linear
+                    odom.setdefault(k, []).append((stamp, p.x, p.y, v.x, v.y))
+                else:
+                    cmd.setdefault(k, []).append((msg.linear.x, msg.linear.y))
+    except FileNotFoundError:
+        raise
+    except Exception as exc:
+        raise ValueError(f"cannot read ROS bag {path}: {exc}") from exc
+    robots = sorted(odom)
+    if not robots or robots != list(range(len(robots))):
+        raise ValueError(f"{path} has no /robot_0../robot_k odom topics (found {robots})")
+    steps = min(len(odom[k]) for k in robots)
+    o = np.array([odom[k][:steps] for k in robots], dtype=np.float64)  # (N, T, 5)
+    c = np.zeros((len(robots), steps, 2))
+    for k in robots:
+        got = np.array(cmd.get(k, [])[:steps], dtype=np.float64).reshape(-1, 2)
+        c[k, : len(got)] = got
+    base = config if config is not None else EnvConfig()
+    if base.scenario.robots != len(robots):
+        base = base.replace(robots=len(robots), arena_half_size=max(
+            base.world.arena_half_size, float(np.abs(o[:, :, 1:3]).max()) + 1.0))
+    time = o[0, :, 0] / 1e9  # stamps (ns) of robot 0's odometry
+    return Recording(base, time, o[:, :, 1:3].transpose(1, 0, 2), o[:, :, 3:5].transpose(1, 0, 2),
+                     c.transpose(1, 0, 2))
