@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from boids_env.config import ObservationConfig
 from boids_env.env import BoidsEnv
 from eval.episode import EpisodeResult, run_episode
 from policies.registry import load_policy
@@ -40,7 +41,7 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, seed: int = 
     params = getattr(pol, "params", None)
     if params is not None and "horizon" not in fields:
         # The sensing radius must cover the controller's neighbour radius.
-        fields["horizon"] = max(params.horizon, 1.0)
+        fields["horizon"] = max(params.horizon, ObservationConfig().horizon)
     env = BoidsEnv(render_mode="rgb_array" if video else None, **fields)
     result = run_episode(env, pol, seed, record=True, frame_every=frame_every if video else 0)
     if not quiet:
