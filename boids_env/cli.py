@@ -62,11 +62,54 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return bench_main(["--out", args.out] + (["--quick"] if args.quick else []))
 
 
+def _train_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("train", help="train followers with Stable-Baselines3 (train extra)",
+                       description="Trains one shared follower policy (PPO by default) on the "
+                       "flock; writes model.zip, config.json, checkpoints/, tb/ to --out.")
+    p.add_argument("--config", help="TOML file of TrainConfig fields (flags override it)")
+    p.add_argument("--out", default="runs/train", help="output folder (runs/train)")
+    p.add_argument("--algorithm", choices=("ppo", "sac"), default=None)
+    p.add_argument("--timesteps", type=int, default=None, dest="total_timesteps",
+                   help="follower-steps in all")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--copies", type=int, default=None, help="env copies stepped together")
+    p.add_argument("--processes", type=int, default=None, help="env worker processes")
+    p.add_argument("--group-sizes", type=int, nargs="+", default=None)
+    p.add_argument("--leader-speeds", type=float, nargs="+", default=None)
+    p.add_argument("--eval-every", type=int, default=None, help="timesteps (0: never)")
+    p.add_argument("--checkpoint-every", type=int, default=None, help="timesteps (0: never)")
+    p.add_argument("--resume", default=None, help="checkpoint zip to continue from")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_train)
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    try:
+        from train.config import TrainConfig
+        from train.run import train
+    except ImportError as exc:
+        raise ImportError(f"boids train needs the train extra (pip install torch==2.13.0 "
+                          f"'boids-env[train]'): {exc}") from exc
+    overrides = {name: getattr(args, name) for name in (
+        "algorithm", "total_timesteps", "seed", "copies", "processes", "eval_every",
+        "checkpoint_every")}
+    overrides["group_sizes"] = tuple(args.group_sizes) if args.group_sizes else None
+    overrides["leader_speeds"] = tuple(args.leader_speeds) if args.leader_speeds else None
+    if args.config:
+        config = TrainConfig.from_toml(args.config, **overrides)
+    else:
+        config = TrainConfig().replace(**overrides)
+    model = train(config, args.out, resume=args.resume, progress_bar=not args.no_progress)
+    print(f"wrote {model} (and config.json, evaluations.csv, checkpoints/, tb/ in {args.out})")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="boids", description="boids-env: leader-following "
                                      "boids flock (Akgun's ROS study) as a PettingZoo env")
     sub = parser.add_subparsers(dest="command", required=True)
     _run_parser(sub)
+    _train_parser(sub)
     _bench_parser(sub)
     return parser
 

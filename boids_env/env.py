@@ -244,9 +244,19 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     def _observe(self) -> npt.NDArray[np.float32]:
         assert self._world is not None
         cfg = self.episode_config
-        return build_observations(self._world.positions, self._world.velocities, self.layout,
-                                  cfg.observation.horizon, cfg.observation.velocity_bound,
-                                  cfg.world.arena_half_size)
+        obs = build_observations(self._world.positions, self._world.velocities, self.layout,
+                                 cfg.observation.horizon, cfg.observation.velocity_bound,
+                                 cfg.world.arena_half_size)
+        if cfg.observation.obs_noise > 0:
+            assert self._rng is not None
+            noise = self._rng.normal(0.0, cfg.observation.obs_noise, obs.shape)
+            slots = self.layout.slots(noise)
+            valid = self.layout.slot_valid(self.layout.slots(obs))
+            slots[..., :4] *= valid[..., None]
+            slots[..., 4] = 0.0
+            space = self.observation_spaces[self.possible_agents[0]]
+            obs = np.clip(obs + noise, space.low, space.high).astype(np.float32)
+        return obs
 
     # -------------------------------------------------------------------------- queries
     def state(self) -> np.ndarray:

@@ -13,6 +13,7 @@ section 4). Arrays put robots on the second-to-last axis with the leader first: 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -161,13 +162,18 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         robot_radius: for contacts (m).
 
     Returns:
-        ``V_sep``, ``V_coh``, ``V_align``, the per-follower ``count_*`` lists, ``duration`` (T,
+        ``V_sep``, ``V_coh``, ``V_align``, the per-follower ``count_*`` lists,
+        ``V_align_unwrapped`` and ``count_align_unwrapped`` (the study's unwrapped rule), ``duration`` (T,
         s), ``steps``, ``min_distance`` (m), ``collisions``, ``polarization`` (episode mean)
         and ``mean_leader_distance`` (m).
     """
     flags = flags_for(config, positions, commanded)
     out: dict[str, object] = dict(episode_violations(flags))
     out.update({k: v.tolist() for k, v in violation_counts(flags).items()})
+    # The study's own (unwrapped) alignment rule beside the configured one, for comparisons.
+    study = flags_for(replace(config, wrap_alignment=False), positions, commanded)["alignment"]
+    out["V_align_unwrapped"] = float(study.sum() / study.shape[0]) if study.shape[0] else 0.0
+    out["count_align_unwrapped"] = study.sum(axis=0).astype(np.int64).tolist()
     out["steps"] = int(positions.shape[0])
     out["duration"] = float(positions.shape[0] * dt)
     out["min_distance"] = float(pairwise_min_distance(positions).min())

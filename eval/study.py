@@ -1,0 +1,96 @@
+"""The study's published data (``eval/data``, copied from the study) and the verdicts that put
+our results beside it, finding by finding.
+
+A finding is one pair of levels of one metric in the study's Tukey tables: the study either
+found a significant difference (with a direction) or none. We reproduce it when our Tukey
+test on the same pair agrees: significant in the same direction, or not significant.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from eval.stats import pair_difference
+
+DATA = resources.files("eval") / "data"
+GROUP_OF_RQ = {1: "rq1", 2: "rq2", 3: "rq3"}
+FACTOR_OF_RQ = {1: "leader_speed", 2: "leader_weight", 3: "robots"}
+
+
+def _read(name: str) -> pd.DataFrame:
+    with resources.as_file(DATA / name) as path:
+        return pd.read_csv(Path(path), dtype={"level": str, "group1": str, "group2": str})
+
+
+def study_runs() -> pd.DataFrame:
+    """Every run the study reported: ``rq, factor, level, run, follower, metric, value``."""
+    return _read("study_runs.csv")
+
+
+def study_tukey() -> pd.DataFrame:
+    """The study's Tukey tables: ``rq, metric, group1, group2, meandiff, p_adj_published,
+    reject`` (meandiff = mean(group2) − mean(group1))."""
+    table = _read("study_tukey.csv")
+    table["reject"] = table["reject"].astype(bool)
+    return table
+
+
+def study_groups(rq: int, metric: str, followers: int = 6) -> dict[str, np.ndarray]:
+    """The study's values per level for one research question and metric (RQ3: the counts of
+    followers 1..``followers`` of every run, pooled as the study did)."""
+    runs = study_runs()
+    rows = runs[(runs.rq == rq) & (runs.metric == metric)]
+    if rq == 3:
+        rows = rows[rows.follower.astype(float) <= followers]
+    return {str(level): g["value"].to_numpy(float)
+            for level, g in rows.groupby("level", sort=False)}
+
+
+def study_summary() -> pd.DataFrame:
+    """Mean and population std (ddof=0, as DESIGN section 5) per rq, level and metric."""
+    runs = study_runs()
+    runs = runs[(runs.rq != 3) | (runs.follower.astype(float) <= 6)]
+    agg = runs.groupby(["rq", "level", "metric"], sort=False)["value"]
+    return agg.agg(mean="mean", std=lambda v: float(np.std(v, ddof=0))).reset_index()
+
+
+def verdicts(tukey_table: pd.DataFrame, policy: str) -> pd.DataFrame:
+    """Each of the study's Tukey findings beside ours for ``policy`` (from
+    :func:`eval.stats.analyse` with ``unwrapped=True``, the study's alignment rule).
+
+    Columns: ``rq``, ``metric``, ``pair``, ``study`` and ``ours`` (a short statement),
+    ``study_meandiff``, ``our_meandiff``, ``our_p``, ``verdict`` (reproduced, not
+    reproduced, or not run)."""
+    rows: list[dict[str, Any]] = []
+    for _, s in study_tukey().iterrows():
+        group = GROUP_OF_RQ[int(s.rq)]
+        ours = tukey_table[(tukey_table.policy == policy) & (tukey_table.group == group)
+                           & (tukey_table.metric == s.metric)] if len(tukey_table) else None
+        row = {"rq": int(s.rq), "metric": s.metric, "pair": f"{s.group1} vs {s.group2}",
+               "study": _statement(s.meandiff, s.reject, s.group1, s.group2),
+               "study_meandiff": float(s.meandiff)}
+        try:
+            if ours is None or ours.empty:
+                raise KeyError
+            diff, reject, p = pair_difference(ours, s.group1, s.group2)
+        except KeyError:
+            rows.append({**row, "ours": "—", "our_meandiff": np.nan, "our_p": np.nan,
+                         "verdict": "not run"})
+            continue
+        same = reject == bool(s.reject) and (not reject or np.sign(diff) == np.sign(s.meandiff))
+        rows.append({**row, "ours": _statement(diff, reject, s.group1, s.group2),
+                     "our_meandiff": diff, "our_p": p,
+                     "verdict": "reproduced" if same else "not reproduced"})
+    return pd.DataFrame(rows)
+
+
+def _statement(diff: float, reject: bool, g1: str, g2: str) -> str:
+    if not reject:
+        return f"no significant difference ({diff:+.3g})"
+    higher = g2 if diff > 0 else g1
+    return f"higher at {higher} by {abs(diff):.3g} (significant)"

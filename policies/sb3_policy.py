@@ -1,0 +1,97 @@
+"""A saved Stable-Baselines3 model as a :class:`~policies.base.Policy` (deterministic actions).
+
+Models saved by ``boids train`` carry a ``boids.json`` entry in their zip (algorithm, the env
+fields the observations depend on, the training config); other SB3 zips load too, trying the
+algorithms in :data:`ALGORITHMS` in turn.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from policies.base import BatchPolicy
+
+META_ENTRY = "boids.json"
+ALGORITHMS = ("ppo", "sac", "td3", "a2c", "ddpg")
+
+
+def algorithm_class(name: str) -> Any:
+    """The SB3 class for an algorithm name (``ppo``, ``sac``, …)."""
+    import stable_baselines3 as sb3
+
+    key = name.lower()
+    if key not in ALGORITHMS:
+        raise ValueError(f"algorithm must be one of {ALGORITHMS}, got {name!r}")
+    return getattr(sb3, key.upper())
+
+
+def read_meta(path: str | Path) -> dict[str, Any]:
+    """The ``boids.json`` metadata of a model zip ({} for a zip saved elsewhere)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            if META_ENTRY not in zf.namelist():
+                return {}
+            return dict(json.loads(zf.read(META_ENTRY)))
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise ValueError(f"cannot read SB3 model {path}: {exc}") from exc
+
+
+def write_meta(path: str | Path, meta: dict[str, Any]) -> None:
+    """Adds (or replaces) the ``boids.json`` entry of a model zip saved by SB3."""
+    path = Path(path)
+    with zipfile.ZipFile(path) as zf:
+        entries = {name: zf.read(name) for name in zf.namelist() if name != META_ENTRY}
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in entries.items():
+            zf.writestr(name, data)
+        zf.writestr(META_ENTRY, json.dumps(meta, indent=2))
+
+
+class SB3Policy(BatchPolicy):
+    """Deterministic actions of an SB3 model for all followers in one ``predict`` call.
+
+    ``env_fields`` holds the env config fields the model's observations need (the number of
+    neighbour slots); ``boids run`` and ``boids eval`` apply them.
+    """
+
+    def __init__(self, model: Any, env_fields: dict[str, Any] | None = None,
+                 name: str = "sb3") -> None:
+        self.model = model
+        self.env_fields = dict(env_fields or {})
+        self.name = name
+        shape = model.observation_space.shape
+        self.obs_size = int(shape[0]) if shape else 0
+        self.max_speed = float(np.max(model.action_space.high))
+
+    @classmethod
+    def load(cls, path: str | Path, device: str = "cpu") -> SB3Policy:
+        """Loads a model zip; the algorithm comes from its metadata or is tried in turn."""
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"policy model file not found: {path}")
+        meta = read_meta(path)
+        names = [meta["algorithm"]] if "algorithm" in meta else list(ALGORITHMS)
+        errors = []
+        for name in names:
+            try:
+                model = algorithm_class(name).load(path, device=device)
+            except Exception as exc:  # noqa: BLE001 - each algorithm is tried in turn
+                errors.append(f"{name}: {exc}")
+                continue
+            return cls(model, meta.get("env_fields"), name=path.stem)
+        raise ValueError(f"cannot load SB3 model {path} ({'; '.join(errors)})")
+
+    def act_batch(self, obs: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
+        obs = np.asarray(obs, dtype=np.float32)
+        if obs.ndim != 2 or obs.shape[1] != self.obs_size:
+            raise ValueError(
+                f"the model expects observations of size {self.obs_size}, got shape "
+                f"{obs.shape}; make the env with the model's env_fields {self.env_fields}")
+        actions, _ = self.model.predict(obs, deterministic=True)
+        return np.clip(actions, -self.max_speed, self.max_speed).astype(np.float32)

@@ -1,0 +1,110 @@
+"""SB3 callbacks that log the study's violation metrics during training."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+
+from boids_env.env import BoidsEnv
+from eval.episode import run_episode
+from policies.sb3_policy import SB3Policy, write_meta
+from train.vec_env import EPISODE_INFO
+
+V_KEYS = ("V_sep", "V_coh", "V_align")
+
+
+class TrainingMetricsCallback(BaseCallback):
+    """Logs the V_* of every finished training episode (``flock/train_*``, means since the
+    last log dump), from the ``flock_episode`` info of :class:`~train.vec_env.FlockVecEnv`."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._episodes: list[dict[str, float]] = []
+
+    def _on_step(self) -> bool:
+        for info in self.locals.get("infos", ()):
+            if EPISODE_INFO in info:
+                self._episodes.append(info[EPISODE_INFO])
+        return True
+
+    def _on_rollout_end(self) -> None:
+        if not self._episodes:
+            return
+        for key in V_KEYS:
+            self.logger.record(f"flock/train_{key}", float(np.mean([e[key] for e in
+                                                                     self._episodes])))
+        self.logger.record("flock/train_total", float(np.mean(
+            [sum(e[k] for k in V_KEYS) for e in self._episodes])))
+        self._episodes = []
+
+
+class FlockEvalCallback(BaseCallback):
+    """Every ``every`` timesteps, runs deterministic evaluation episodes of the current model
+    on the study's default case, logs ``eval/V_*`` and ``eval/total`` to TensorBoard, appends
+    them to ``evaluations.csv`` and saves ``best_model.zip`` when the total violation improves.
+    """
+
+    def __init__(self, out: str | Path, every: int, seeds: Sequence[int],
+                 env_fields: dict[str, Any], save_best: Any = None) -> None:
+        super().__init__()
+        self.out = Path(out)
+        self.every = every
+        self.seeds = tuple(seeds)
+        self.env_fields = dict(env_fields)
+        self.save_best = save_best
+        self.best = float("inf")
+        self._next = every
+
+    def _on_step(self) -> bool:
+        if self.every and self.num_timesteps >= self._next:
+            self._next += self.every
+            self.evaluate()
+        return True
+
+    def evaluate(self) -> dict[str, float]:
+        """Runs the evaluation episodes now and records their mean V_*."""
+        env = BoidsEnv(**self.env_fields)
+        policy = SB3Policy(self.model)
+        runs = [run_episode(env, policy, seed, record=False).metrics for seed in self.seeds]
+        env.close()
+        result = {k: float(np.mean([m[k] for m in runs])) for k in V_KEYS}
+        result["total"] = sum(result[k] for k in V_KEYS)
+        for key, value in result.items():
+            self.logger.record(f"eval/{key}", value)
+        path = self.out / "evaluations.csv"
+        new = not path.exists()
+        with path.open("a", newline="") as fh:
+            writer = csv.writer(fh)
+            if new:
+                writer.writerow(["timesteps", *result])
+            writer.writerow([self.num_timesteps, *(f"{v:.6f}" for v in result.values())])
+        if result["total"] < self.best:
+            self.best = result["total"]
+            if self.save_best is not None:
+                self.save_best(self.out / "best_model.zip")
+        if self.verbose:
+            print(f"eval at {self.num_timesteps}: " + ", ".join(
+                f"{k} {v:.3f}" for k, v in result.items()))
+        return result
+
+
+class Checkpoints(CheckpointCallback):
+    """SB3's checkpoints, each model zip tagged with the run's ``boids.json`` metadata so it
+    loads as a policy (``boids run --policy .../checkpoints/model_..._steps.zip``)."""
+
+    def __init__(self, every_calls: int, save_path: str | Path, meta: dict[str, Any]) -> None:
+        super().__init__(save_freq=max(every_calls, 1), save_path=str(save_path),
+                         name_prefix="model")
+        self.meta = meta
+
+    def _on_step(self) -> bool:
+        due = self.n_calls % self.save_freq == 0
+        result = super()._on_step()
+        if due:
+            write_meta(self._checkpoint_path(extension="zip"), self.meta)
+        return result

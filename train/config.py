@@ -1,0 +1,170 @@
+"""The training run's configuration: one frozen, validated dataclass, read from TOML or flags."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+from boids_env.config import FIELD_OWNER, PATHS, check_integer, check_number
+
+ALGORITHMS = ("ppo", "sac")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """A Stable-Baselines3 run with parameter sharing (one VecEnv slot per follower).
+
+    Timesteps count follower-steps (one per follower per 0.1 s step), SB3's convention for a
+    VecEnv whose slots are followers.
+    """
+
+    algorithm: str = "ppo"
+    """``ppo`` (default) or ``sac``."""
+    total_timesteps: int = 12_000_000
+    seed: int = 0
+    group_sizes: tuple[int, ...] = (7, 13, 19)
+    """Group sizes (leader included) of the env copies, assigned round robin."""
+    copies: int = 6
+    """Env copies stepped together (their followers are the VecEnv's slots)."""
+    leader_speeds: tuple[float, ...] = (0.5, 0.55, 0.6)
+    """Each episode draws its leader speed from these (m/s)."""
+    paths: tuple[str, ...] = ("square",)
+    """Each episode draws its leader path from these."""
+    processes: int = 1
+    """Worker processes the env copies are split over (1: stepped in the training process)."""
+    torch_threads: int = 1
+    env_fields: dict[str, Any] = field(default_factory=dict)
+    """Other env config fields by flat name (e.g. ``{"neighbours": 6}``)."""
+    # Hyperparameters shared by both algorithms.
+    learning_rate: float = 3e-4
+    gamma: float = 0.99
+    batch_size: int = 4608
+    net_arch: tuple[int, ...] = (64, 64)
+    log_std_init: float = -1.5
+    # PPO.
+    n_steps: int = 256
+    n_epochs: int = 5
+    gae_lambda: float = 0.95
+    clip_range: float = 0.2
+    ent_coef: float = 0.0
+    # SAC.
+    buffer_size: int = 1_000_000
+    learning_starts: int = 20_000
+    train_freq: int = 1
+    gradient_steps: int = 1
+    tau: float = 0.005
+    # Logging, evaluation, checkpoints (in timesteps).
+    eval_every: int = 1_000_000
+    eval_seeds: tuple[int, ...] = (100, 101)
+    """Seeds of the evaluation episodes (default case: 13 robots, 0.55 m/s)."""
+    checkpoint_every: int = 2_000_000
+
+    def __post_init__(self) -> None:
+        if self.algorithm not in ALGORITHMS:
+            raise ValueError(f"algorithm must be one of {ALGORITHMS}, got {self.algorithm!r}")
+        _set(self, "total_timesteps", check_integer("total_timesteps", self.total_timesteps,
+                                                    1, 10**12))
+        _set(self, "seed", check_integer("seed", self.seed, 0, 2**32 - 1))
+        _set(self, "group_sizes", _tuple("group_sizes", self.group_sizes,
+                                         lambda n, v: check_integer(n, v, 2, 1000)))
+        _set(self, "copies", check_integer("copies", self.copies, 1, 1024))
+        _set(self, "leader_speeds", _tuple("leader_speeds", self.leader_speeds,
+                                           lambda n, v: check_number(n, v, 0.0, 10.0,
+                                                                     lo_open=True, unit="m/s")))
+        _set(self, "paths", _tuple("paths", self.paths, _path))
+        _set(self, "processes", check_integer("processes", self.processes, 1, self.copies))
+        _set(self, "torch_threads", check_integer("torch_threads", self.torch_threads, 1, 256))
+        if not isinstance(self.env_fields, dict):
+            raise ValueError(f"env_fields must be a table of env config fields, got "
+                             f"{self.env_fields!r}")
+        keys = set(self.env_fields)
+        unknown = sorted((keys - set(FIELD_OWNER)) | (keys & {"robots"}))
+        if unknown:
+            raise ValueError(f"env_fields has unknown or reserved key(s) {unknown}; group "
+                             f"size goes in group_sizes, allowed: {sorted(FIELD_OWNER)}")
+        for name, lo, hi in (("learning_rate", 0.0, 1.0), ("gamma", 0.0, 1.0),
+                             ("gae_lambda", 0.0, 1.0), ("clip_range", 0.0, 10.0),
+                             ("tau", 0.0, 1.0)):
+            _set(self, name, check_number(name, getattr(self, name), lo, hi, lo_open=True))
+        _set(self, "ent_coef", check_number("ent_coef", self.ent_coef, 0.0, 10.0))
+        _set(self, "log_std_init", check_number("log_std_init", self.log_std_init, -20, 5))
+        for name, lo in (("batch_size", 1), ("n_steps", 1), ("n_epochs", 1), ("buffer_size", 1),
+                         ("learning_starts", 0), ("train_freq", 1), ("gradient_steps", 1),
+                         ("eval_every", 0), ("checkpoint_every", 0)):
+            _set(self, name, check_integer(name, getattr(self, name), lo, 10**12))
+        _set(self, "net_arch", _tuple("net_arch", self.net_arch,
+                                      lambda n, v: check_integer(n, v, 1, 4096)))
+        _set(self, "eval_seeds", tuple(check_integer("eval_seeds", s, 0, 2**32 - 1)
+                                       for s in _as_tuple("eval_seeds", self.eval_seeds)))
+
+    # ------------------------------------------------------------------------- building
+    @classmethod
+    def from_toml(cls, path: str | Path, **overrides: Any) -> TrainConfig:
+        """Reads a TOML file of fields (top level or a ``[train]`` table); ``overrides``
+        (e.g. from command-line flags, None ignored) win."""
+        try:
+            data = tomllib.loads(Path(path).read_text())
+        except FileNotFoundError:
+            raise FileNotFoundError(f"training config not found: {path}") from None
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
+            raise ValueError(f"cannot read training config {path}: {exc}") from exc
+        data = dict(data.get("train", data))
+        return cls.from_dict({**data, **{k: v for k, v in overrides.items() if v is not None}})
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"unknown training config field(s) {unknown}; known: "
+                             f"{sorted(known)}")
+        return cls(**data)
+
+    def replace(self, **changes: Any) -> TrainConfig:
+        return replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+
+    # -------------------------------------------------------------------------- derived
+    def algorithm_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments for the SB3 algorithm's constructor."""
+        common = {"learning_rate": self.learning_rate, "gamma": self.gamma,
+                  "batch_size": self.batch_size, "seed": self.seed}
+        if self.algorithm == "ppo":
+            return {**common, "n_steps": self.n_steps, "n_epochs": self.n_epochs,
+                    "gae_lambda": self.gae_lambda, "clip_range": self.clip_range,
+                    "ent_coef": self.ent_coef,
+                    "policy_kwargs": {"net_arch": list(self.net_arch),
+                                      "log_std_init": self.log_std_init}}
+        return {**common, "buffer_size": self.buffer_size,
+                "learning_starts": self.learning_starts, "train_freq": self.train_freq,
+                "gradient_steps": self.gradient_steps, "tau": self.tau,
+                "policy_kwargs": {"net_arch": list(self.net_arch),
+                                  "log_std_init": self.log_std_init}}
+
+
+def _set(obj: object, name: str, value: Any) -> None:
+    object.__setattr__(obj, name, value)
+
+
+def _as_tuple(name: str, value: Any) -> tuple[Any, ...]:
+    if isinstance(value, str) or not isinstance(value, list | tuple):
+        raise ValueError(f"{name} must be a list, got {value!r}")
+    if not value:
+        raise ValueError(f"{name} must not be empty")
+    return tuple(value)
+
+
+def _tuple(name: str, value: Any, check: Any) -> tuple[Any, ...]:
+    return tuple(check(name, v) for v in _as_tuple(name, value))
+
+
+def _path(name: str, value: Any) -> str:
+    if value not in PATHS or value == "external":
+        raise ValueError(f"{name} entries must be among {[p for p in PATHS if p != 'external']},"
+                         f" got {value!r}")
+    return str(value)

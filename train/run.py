@@ -1,0 +1,91 @@
+"""``boids train``: a Stable-Baselines3 run with parameter sharing over the flock's followers.
+
+Writes to the output folder: ``config.json`` (the resolved :class:`TrainConfig`),
+``model.zip`` (the final model, loadable by ``boids run --policy``), ``best_model.zip`` (best
+periodic evaluation), ``evaluations.csv``, ``checkpoints/model_<steps>_steps.zip`` and
+TensorBoard logs under ``tb/``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from stable_baselines3.common.callbacks import CallbackList
+from stable_baselines3.common.vec_env import VecMonitor
+
+from policies.sb3_policy import algorithm_class, read_meta, write_meta
+from train.callbacks import Checkpoints, FlockEvalCallback, TrainingMetricsCallback
+from train.config import TrainConfig
+from train.vec_env import CopySpec, FlockVecEnv
+
+
+def make_vec_env(config: TrainConfig) -> FlockVecEnv:
+    """The VecEnv of a run: ``copies`` env copies, group sizes assigned round robin."""
+    sizes = config.group_sizes
+    specs = [CopySpec(sizes[i % len(sizes)], config.leader_speeds, config.paths,
+                      dict(config.env_fields)) for i in range(config.copies)]
+    return FlockVecEnv(specs, seed=config.seed, processes=config.processes)
+
+
+def model_meta(config: TrainConfig) -> dict[str, Any]:
+    """The ``boids.json`` entry written into every model zip of the run."""
+    return {"algorithm": config.algorithm, "env_fields": dict(config.env_fields),
+            "train_config": config.to_dict()}
+
+
+def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
+          progress_bar: bool = False, verbose: int = 0) -> Path:
+    """Trains a follower policy and returns the path of the final ``model.zip``.
+
+    Args:
+        config: the run's configuration.
+        out: output folder (created).
+        resume: a checkpoint zip of this run to continue from; training goes on until
+            ``config.total_timesteps`` in all (the env copies restart their episodes).
+        progress_bar: show SB3's progress bar (tqdm + rich).
+        verbose: SB3 verbosity (0 quiet, 1 tables).
+    """
+    import torch
+
+    out = Path(out)
+    if resume is not None and not Path(resume).is_file():
+        raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(config.torch_threads)
+    (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
+    meta = model_meta(config)
+    venv = VecMonitor(make_vec_env(config))
+    cls = algorithm_class(config.algorithm)
+    try:
+        if resume is not None:
+            saved = read_meta(resume).get("algorithm", config.algorithm)
+            if saved != config.algorithm:
+                raise ValueError(f"checkpoint {resume} was trained with {saved}, the config "
+                                 f"says algorithm={config.algorithm!r}")
+            model = cls.load(resume, env=venv, device="cpu", tensorboard_log=str(out / "tb"))
+            model.set_random_seed(config.seed)
+        else:
+            model = cls("MlpPolicy", venv, device="cpu", verbose=verbose,
+                        tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
+        remaining = config.total_timesteps - (model.num_timesteps if resume else 0)
+
+        def save(path: Path) -> None:
+            model.save(path)
+            write_meta(path, meta)
+
+        evaluator = FlockEvalCallback(out, config.eval_every, config.eval_seeds,
+                                      config.env_fields, save_best=save)
+        evaluator.verbose = verbose
+        callbacks: list[Any] = [TrainingMetricsCallback(), evaluator]
+        if config.checkpoint_every:
+            callbacks.append(Checkpoints(config.checkpoint_every // venv.num_envs,
+                                         out / "checkpoints", meta))
+        if remaining > 0:
+            model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress_bar,
+                        reset_num_timesteps=resume is None, tb_log_name="run")
+        save(out / "model.zip")
+    finally:
+        venv.close()
+    return out / "model.zip"

@@ -1,0 +1,321 @@
+"""An SB3 ``VecEnv`` over several flock envs with parameter sharing: one slot per follower.
+
+Every follower of every env copy is one VecEnv slot, so one shared SB3 policy acts for all of
+them. Copies may have different group sizes (observations have a fixed size), and each episode
+may sample its leader speed and path. SB3's contract is kept: when a copy's episode ends, all of
+its slots report ``done``, carry ``terminal_observation`` and ``TimeLimit.truncated`` (episodes
+end by truncation only), and their observation is already that of the next episode.
+
+Seeding: ``seed(s)`` spawns one independent ``numpy.random.SeedSequence`` child per copy; each
+copy draws its episode seeds and sampled options from its own stream, so copies never share a
+random stream and a run is reproducible from one integer.
+
+With ``processes > 1`` the copies are split over worker processes (each owns a shard of copies
+and steps them in one call), which pays when several copies are stepped per VecEnv step.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
+
+from boids_env.env import BoidsEnv
+
+EPISODE_INFO = "flock_episode"
+"""Info key, on the first slot of a copy whose episode just ended: that episode's V_*,
+group size and leader speed (for logging training metrics)."""
+
+
+@dataclass(frozen=True)
+class CopySpec:
+    """One env copy: its group size, fixed env fields and per-episode sampled options."""
+
+    robots: int = 13
+    leader_speeds: tuple[float, ...] = (0.55,)
+    """Each episode's leader speed is drawn uniformly from these (m/s)."""
+    paths: tuple[str, ...] = ("square",)
+    """Each episode's leader path is drawn uniformly from these."""
+    env_fields: dict[str, Any] = field(default_factory=dict)
+    """Other EnvConfig fields by flat name (e.g. ``max_cycles``)."""
+
+    def make(self) -> BoidsEnv:
+        return BoidsEnv(robots=self.robots, **self.env_fields)
+
+
+class _Shard:
+    """Copies stepped together, in this process or in a worker; arrays in, arrays out."""
+
+    def __init__(self, specs: Sequence[CopySpec]) -> None:
+        self.specs = list(specs)
+        self.envs = [spec.make() for spec in self.specs]
+        self.sizes = [len(env.possible_agents) for env in self.envs]
+        self.rngs = [np.random.default_rng(0) for _ in self.envs]
+        self.obs_size = self.envs[0].observation_space(self.envs[0].possible_agents[0]).shape[0]
+
+    def seed(self, seed_sequences: Sequence[np.random.SeedSequence]) -> None:
+        self.rngs = [np.random.default_rng(s) for s in seed_sequences]
+
+    def _reset_copy(self, i: int) -> npt.NDArray[np.float32]:
+        spec, rng, env = self.specs[i], self.rngs[i], self.envs[i]
+        options = {"leader_speed": float(spec.leader_speeds[rng.integers(len(spec.leader_speeds))]),
+                   "path": str(spec.paths[rng.integers(len(spec.paths))])}
+        obs, _ = env.reset(seed=int(rng.integers(2**31 - 1)), options=options)
+        return np.stack([obs[a] for a in env.possible_agents])
+
+    def reset(self) -> npt.NDArray[np.float32]:
+        return np.concatenate([self._reset_copy(i) for i in range(len(self.envs))])
+
+    def step(self, actions: npt.NDArray[np.float32]) -> tuple[
+            npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.bool_],
+            list[dict[str, Any]]]:
+        obs_parts, rew_parts, done_parts = [], [], []
+        infos: list[dict[str, Any]] = []
+        start = 0
+        for i, env in enumerate(self.envs):
+            n = self.sizes[i]
+            agents = env.possible_agents
+            obs, rew, _, trunc, _ = env.step(dict(zip(agents, actions[start:start + n],
+                                                      strict=True)))
+            start += n
+            o = np.stack([obs[a] for a in agents])
+            r = np.fromiter((rew[a] for a in agents), np.float32, n)
+            done = bool(trunc[agents[0]])
+            copy_infos: list[dict[str, Any]] = [{} for _ in range(n)]
+            if done:
+                m = env.episode_metrics()
+                copy_infos[0][EPISODE_INFO] = {
+                    "V_sep": m["V_sep"], "V_coh": m["V_coh"], "V_align": m["V_align"],
+                    "robots": self.specs[i].robots,
+                    "leader_speed": env.episode_config.scenario.leader_speed}
+                for k, info in enumerate(copy_infos):
+                    info["terminal_observation"] = o[k]
+                    info["TimeLimit.truncated"] = True
+                o = self._reset_copy(i)
+            obs_parts.append(o)
+            rew_parts.append(r)
+            done_parts.append(np.full(n, done))
+            infos.extend(copy_infos)
+        return (np.concatenate(obs_parts), np.concatenate(rew_parts),
+                np.concatenate(done_parts), infos)
+
+    def call(self, copy: int, method: str, *args: Any, **kwargs: Any) -> Any:
+        return getattr(self.envs[copy], method)(*args, **kwargs)
+
+    def get(self, copy: int, attr: str) -> Any:
+        return getattr(self.envs[copy], attr)
+
+    def set(self, copy: int, attr: str, value: Any) -> None:
+        setattr(self.envs[copy], attr, value)
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+
+def _worker(conn: Any, specs: Sequence[CopySpec]) -> None:  # pragma: no cover - subprocess
+    shard = _Shard(specs)
+    try:
+        while True:
+            cmd, args = conn.recv()
+            if cmd == "close":
+                shard.close()
+                conn.send(None)
+                return
+            try:
+                conn.send(("ok", getattr(shard, cmd)(*args)))
+            except Exception as exc:  # noqa: BLE001 - reported to the parent
+                conn.send(("error", exc))
+    except (EOFError, KeyboardInterrupt):
+        shard.close()
+
+
+class _RemoteShard:
+    """A :class:`_Shard` in a worker process, called through a pipe."""
+
+    def __init__(self, specs: Sequence[CopySpec], ctx: Any) -> None:
+        self.conn, child = ctx.Pipe()
+        self.process = ctx.Process(target=_worker, args=(child, list(specs)), daemon=True)
+        self.process.start()
+        child.close()
+        self.sizes = [spec.robots - 1 for spec in specs]
+
+    def send(self, cmd: str, *args: Any) -> None:
+        self.conn.send((cmd, args))
+
+    def receive(self) -> Any:
+        status, value = self.conn.recv()
+        if status == "error":
+            raise value
+        return value
+
+    def __getattr__(self, cmd: str) -> Any:
+        if cmd.startswith("_") or cmd in {"conn", "process", "sizes"}:
+            raise AttributeError(cmd)
+
+        def remote(*args: Any) -> Any:
+            self.send(cmd, *args)
+            return self.receive()
+        return remote
+
+    def close(self) -> None:
+        try:
+            self.conn.send(("close", ()))
+            self.conn.recv()
+        except (BrokenPipeError, EOFError):
+            pass
+        self.process.join(timeout=5)
+
+
+class FlockVecEnv(VecEnv):
+    """SB3 VecEnv with one slot per follower over several :class:`BoidsEnv` copies.
+
+    Args:
+        copies: the env copies (their group sizes, sampled leader speeds and paths); an int
+            ``n`` means ``n`` copies of the study's default case.
+        seed: base seed (see :meth:`seed`); reseed any time with ``seed()``.
+        processes: worker processes the copies are split over (1: all in this process).
+    """
+
+    def __init__(self, copies: int | Iterable[CopySpec] = 1, *, seed: int = 0,
+                 processes: int = 1) -> None:
+        specs = [CopySpec() for _ in range(copies)] if isinstance(copies, int) else list(copies)
+        if not specs:
+            raise ValueError("copies must hold at least one CopySpec (or be an int >= 1)")
+        for spec in specs:
+            if not isinstance(spec, CopySpec):
+                raise TypeError(f"copies must be CopySpec instances, got {type(spec).__name__}")
+            if spec.robots < 2:
+                raise ValueError(f"robots must be >= 2 (one follower at least), got "
+                                 f"{spec.robots}")
+        if not isinstance(processes, int) or not 1 <= processes <= len(specs):
+            raise ValueError(f"processes must be an integer in [1, {len(specs)}] (the number "
+                             f"of copies), got {processes!r}")
+        self.specs = specs
+        probe = [spec.make() for spec in specs]
+        obs_spaces = [e.observation_space(e.possible_agents[0]) for e in probe]
+        if len({s.shape for s in obs_spaces}) != 1:
+            raise ValueError("all copies must have the same observation size (neighbours)")
+        act_space = probe[0].action_space(probe[0].possible_agents[0])
+        obs_space = obs_spaces[0]
+        for e in probe:
+            e.close()
+        # Contiguous groups of copies per shard, balanced by follower count.
+        groups = _split(specs, processes)
+        if processes == 1:
+            self.shards: list[Any] = [_Shard(specs)]
+        else:
+            ctx = mp.get_context("forkserver" if "forkserver" in mp.get_all_start_methods()
+                                 else "spawn")
+            self.shards = [_RemoteShard(group, ctx) for group in groups]
+        self.copy_sizes = [spec.robots - 1 for spec in specs]
+        self.shard_sizes = [sum(s.sizes) for s in self.shards]
+        self._copy_index = [(si, ci) for si, s in enumerate(self.shards)
+                            for ci in range(len(s.sizes))]
+        self._actions: npt.NDArray[np.float32] | None = None
+        self._closed = False
+        super().__init__(sum(self.copy_sizes), obs_space, act_space)
+        self._base_seed = seed
+        self.seed(seed)
+
+    # ------------------------------------------------------------------------- contract
+    def seed(self, seed: int | None = None) -> Sequence[None | int]:
+        """Gives every copy its own child of ``SeedSequence(seed)``; takes effect at the next
+        :meth:`reset`. Returns the per-slot seeds in SB3's style (the base seed per slot)."""
+        if seed is None:
+            seed = int(np.random.SeedSequence().entropy % (2**31))
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+            raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+        children = np.random.SeedSequence(int(seed)).spawn(len(self.specs))
+        start = 0
+        for shard in self.shards:
+            n = len(shard.sizes)
+            shard.seed(children[start:start + n])
+            start += n
+        self._base_seed = int(seed)
+        return [int(seed)] * self.num_envs
+
+    def reset(self) -> npt.NDArray[np.float32]:
+        obs = np.concatenate([s.reset() for s in self.shards])
+        self.reset_infos = [{} for _ in range(self.num_envs)]
+        self._reset_seeds()
+        self._reset_options()
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        actions = np.asarray(actions, dtype=np.float32)
+        if actions.shape != (self.num_envs, *self.action_space.shape):
+            raise ValueError(f"actions must have shape {(self.num_envs, 2)} (one (vx, vy) per "
+                             f"slot), got {actions.shape}")
+        self._actions = actions
+        if len(self.shards) > 1:
+            start = 0
+            for shard, n in zip(self.shards, self.shard_sizes, strict=True):
+                shard.send("step", actions[start:start + n])
+                start += n
+
+    def step_wait(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32],
+                                 npt.NDArray[np.bool_], list[dict[str, Any]]]:
+        if self._actions is None:
+            raise RuntimeError("step_wait() without step_async()")
+        if len(self.shards) == 1:
+            results = [self.shards[0].step(self._actions)]
+        else:
+            results = [shard.receive() for shard in self.shards]
+        self._actions = None
+        obs = np.concatenate([r[0] for r in results])
+        rewards = np.concatenate([r[1] for r in results])
+        dones = np.concatenate([r[2] for r in results])
+        infos = [info for r in results for info in r[3]]
+        return obs, rewards, dones, infos
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        for shard in self.shards:
+            shard.close()
+        self._closed = True
+
+    # ---------------------------------------------------------------- per-slot delegation
+    def _slot_copies(self, indices: VecEnvIndices) -> list[tuple[int, int]]:
+        slots = self._get_indices(indices)
+        owner = np.repeat(np.arange(len(self.specs)), self.copy_sizes)
+        return [self._copy_index[owner[i]] for i in slots]
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        return [self.shards[s].get(c, attr_name) for s, c in self._slot_copies(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        for s, c in dict.fromkeys(self._slot_copies(indices)):
+            self.shards[s].set(c, attr_name, value)
+
+    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None,
+                   **method_kwargs: Any) -> list[Any]:
+        return [self.shards[s].call(c, method_name, *method_args, **method_kwargs)
+                for s, c in self._slot_copies(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type, indices: VecEnvIndices = None) -> list[bool]:
+        return [False] * len(self._get_indices(indices))
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None] * len(self.specs)
+
+
+def _split(specs: Sequence[CopySpec], parts: int) -> list[list[CopySpec]]:
+    """Contiguous groups of copies with follower counts as equal as possible."""
+    weights = np.cumsum([s.robots - 1 for s in specs])
+    total = weights[-1]
+    bounds = [int(np.searchsorted(weights, total * k / parts, side="left")) + 1
+              for k in range(1, parts)]
+    groups, start = [], 0
+    for b in [*bounds, len(specs)]:
+        b = min(max(b, start + 1), len(specs) - (parts - len(groups) - 1))
+        groups.append(list(specs[start:b]))
+        start = b
+    return groups
+
