@@ -62,6 +62,63 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return bench_main(["--out", args.out] + (["--quick"] if args.quick else []))
 
 
+def _eval_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("eval", help="rerun the study's experiments (or another suite) for "
+                       "one or more policies, with statistics, figures and a report",
+                       description="Runs every (policy, case, seed) episode of a suite in "
+                       "parallel (resumable), writes results.parquet/.csv, the statistics, "
+                       "figures and report.md/report.html to --out.")
+    p.add_argument("--policy", action="append", default=None,
+                   help="as for boids run; repeat to compare policies (first = baseline); "
+                   "reynolds@boids_ros picks a preset (default: reynolds)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
+                   help="preset of a bare 'reynolds' policy (paper)")
+    p.add_argument("--suite", default="paper", help="paper (default), robustness, or a TOML "
+                   "file")
+    p.add_argument("--seeds", type=int, default=None, help="seeds 0..N-1 (suite's: 5)")
+    p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
+    p.add_argument("--backend", choices=("process", "ray"), default="process")
+    p.add_argument("--keep-trajectories", action="store_true",
+                   help="keep every episode's trajectory (default: first seed per case)")
+    p.add_argument("--out", default="runs/eval", help="output folder (runs/eval)")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=_cmd_eval)
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from eval.report import build_report
+    from eval.runner import PolicySpec, run_suite
+    from eval.suites import load_suite
+
+    specs = []
+    for spec in args.policy or ["reynolds"]:
+        name, _, preset = spec.partition("@")
+        if preset and name != "reynolds":
+            raise ValueError(f"only reynolds takes a @preset, got {spec!r}")
+        if preset and preset not in PRESETS:
+            raise ValueError(f"preset must be one of {sorted(PRESETS)}, got {preset!r}")
+        specs.append(PolicySpec(name, preset or args.preset))
+    suite = load_suite(args.suite).with_seeds(args.seeds)
+    table = run_suite(specs, suite, args.out, workers=args.workers, backend=args.backend,
+                      keep_trajectories=args.keep_trajectories, progress=not args.no_progress)
+    report = build_report(args.out)
+    print(f"{len(table)} episode rows; wrote results.parquet, results.csv and {report}")
+    return 0
+
+
+def _report_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("report", help="rebuild the report of a boids eval folder (no rerun)")
+    p.add_argument("dir", help="the --out folder of boids eval")
+    p.set_defaults(func=_cmd_report)
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from eval.report import build_report
+
+    print(f"wrote {build_report(args.dir)}")
+    return 0
+
+
 def _train_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("train", help="train followers with Stable-Baselines3 (train extra)",
                        description="Trains one shared follower policy (PPO by default) on the "
@@ -109,6 +166,8 @@ def build_parser() -> argparse.ArgumentParser:
                                      "boids flock (Akgun's ROS study) as a PettingZoo env")
     sub = parser.add_subparsers(dest="command", required=True)
     _run_parser(sub)
+    _eval_parser(sub)
+    _report_parser(sub)
     _train_parser(sub)
     _bench_parser(sub)
     return parser

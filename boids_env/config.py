@@ -18,7 +18,7 @@ PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "e
 """Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
 
 
-def check_number(name: str, value: Any, lo: float, hi: float, *, lo_open: bool = False,
+def _number(name: str, value: Any, lo: float, hi: float, *, lo_open: bool = False,
             hi_open: bool = False, unit: str = "") -> float:
     """Checks that ``value`` is a real number in the given interval and returns it as float."""
     left, right = "(" if lo_open else "[", ")" if hi_open else "]"
@@ -33,13 +33,18 @@ def check_number(name: str, value: Any, lo: float, hi: float, *, lo_open: bool =
     return v
 
 
-def check_integer(name: str, value: Any, lo: int, hi: int) -> int:
+def _integer(name: str, value: Any, lo: int, hi: int) -> int:
     """Checks that ``value`` is an integer (numpy integers accepted) in [lo, hi]."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
     if not lo <= int(value) <= hi:
         raise ValueError(f"{name} must be in [{lo}, {hi}], got {value!r}")
     return int(value)
+
+
+check_number = _number
+"""Public name of the range check, for other packages' configs (e.g. ``train.config``)."""
+check_integer = _integer
 
 
 def _set(obj: object, name: str, value: Any) -> None:
@@ -69,19 +74,19 @@ class WorldConfig:
     """pymunk collision slop (m). Its default (0.1) assumes pixels; in metres robots would sink."""
 
     def __post_init__(self) -> None:
-        _set(self, "arena_half_size", check_number("arena_half_size", self.arena_half_size, 0.5, 1000,
+        _set(self, "arena_half_size", _number("arena_half_size", self.arena_half_size, 0.5, 1000,
                                               unit="m"))
-        _set(self, "robot_radius", check_number("robot_radius", self.robot_radius, 0.0, 0.5,
+        _set(self, "robot_radius", _number("robot_radius", self.robot_radius, 0.0, 0.5,
                                            lo_open=True, unit="m"))
-        _set(self, "robot_mass", check_number("robot_mass", self.robot_mass, 0.0, 100, lo_open=True,
+        _set(self, "robot_mass", _number("robot_mass", self.robot_mass, 0.0, 100, lo_open=True,
                                          unit="kg"))
-        _set(self, "max_speed", check_number("max_speed", self.max_speed, 0.0, 5.0, lo_open=True,
+        _set(self, "max_speed", _number("max_speed", self.max_speed, 0.0, 5.0, lo_open=True,
                                         unit="m/s"))
-        _set(self, "drive_force", check_number("drive_force", self.drive_force, 0.0, 1000,
+        _set(self, "drive_force", _number("drive_force", self.drive_force, 0.0, 1000,
                                           lo_open=True, unit="N"))
-        _set(self, "dt", check_number("dt", self.dt, 0.0, 1.0, lo_open=True, unit="s"))
-        _set(self, "substeps", check_integer("substeps", self.substeps, 1, 1000))
-        _set(self, "collision_slop", check_number("collision_slop", self.collision_slop, 0.0, 0.01,
+        _set(self, "dt", _number("dt", self.dt, 0.0, 1.0, lo_open=True, unit="s"))
+        _set(self, "substeps", _integer("substeps", self.substeps, 1, 1000))
+        _set(self, "collision_slop", _number("collision_slop", self.collision_slop, 0.0, 0.01,
                                              unit="m"))
 
 
@@ -123,28 +128,28 @@ class ScenarioConfig:
     """Spacing (m) of the initial grid behind the leader. Paper: 0.5 m."""
 
     def __post_init__(self) -> None:
-        _set(self, "robots", check_integer("robots", self.robots, 2, 10_000))
-        _set(self, "leader_speed", check_number("leader_speed", self.leader_speed, 0.0, 2.0,
+        _set(self, "robots", _integer("robots", self.robots, 2, 10_000))
+        _set(self, "leader_speed", _number("leader_speed", self.leader_speed, 0.0, 2.0,
                                            lo_open=True, unit="m/s"))
         if self.path not in PATHS:
             raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
-        _set(self, "path_size", check_number("path_size", self.path_size, 0.0, 1000, lo_open=True,
+        _set(self, "path_size", _number("path_size", self.path_size, 0.0, 1000, lo_open=True,
                                         unit="m"))
         _set(self, "waypoints", _waypoints(self.waypoints))
         if self.path == "waypoints" and not self.waypoints:
             raise ValueError("waypoints must hold at least one (x, y) target when "
                              "path='waypoints', got ()")
-        _set(self, "laps", check_integer("laps", self.laps, 1, 1000))
+        _set(self, "laps", _integer("laps", self.laps, 1, 1000))
         _set(self, "random_waypoint_count",
-             check_integer("random_waypoint_count", self.random_waypoint_count, 1, 1000))
-        _set(self, "arrival_margin", check_number("arrival_margin", self.arrival_margin, 0.0, 1.0,
+             _integer("random_waypoint_count", self.random_waypoint_count, 1, 1000))
+        _set(self, "arrival_margin", _number("arrival_margin", self.arrival_margin, 0.0, 1.0,
                                              lo_open=True, unit="m"))
-        _set(self, "startup_time", check_number("startup_time", self.startup_time, 0.0, 600, unit="s"))
-        _set(self, "tail_time", check_number("tail_time", self.tail_time, 0.0, 600, unit="s"))
+        _set(self, "startup_time", _number("startup_time", self.startup_time, 0.0, 600, unit="s"))
+        _set(self, "tail_time", _number("tail_time", self.tail_time, 0.0, 600, unit="s"))
         if self.max_cycles is not None:
-            _set(self, "max_cycles", check_integer("max_cycles", self.max_cycles, 1, 10**9))
-        _set(self, "init_jitter", check_number("init_jitter", self.init_jitter, 0.0, 0.2, unit="m"))
-        _set(self, "layout_spacing", check_number("layout_spacing", self.layout_spacing, 0.1, 10,
+            _set(self, "max_cycles", _integer("max_cycles", self.max_cycles, 1, 10**9))
+        _set(self, "init_jitter", _number("init_jitter", self.init_jitter, 0.0, 0.2, unit="m"))
+        _set(self, "layout_spacing", _number("layout_spacing", self.layout_spacing, 0.1, 10,
                                              unit="m"))
 
 
@@ -177,11 +182,11 @@ class ObservationConfig:
     valid flags and empty slots stay exact. 0 (the study's exact sensing) by default."""
 
     def __post_init__(self) -> None:
-        _set(self, "horizon", check_number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
-        _set(self, "neighbours", check_integer("neighbours", self.neighbours, 0, 1024))
-        _set(self, "velocity_bound", check_number("velocity_bound", self.velocity_bound, 0.0, 100,
+        _set(self, "horizon", _number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
+        _set(self, "neighbours", _integer("neighbours", self.neighbours, 0, 1024))
+        _set(self, "velocity_bound", _number("velocity_bound", self.velocity_bound, 0.0, 100,
                                              lo_open=True, unit="m/s"))
-        _set(self, "obs_noise", check_number("obs_noise", self.obs_noise, 0.0, 10.0))
+        _set(self, "obs_noise", _number("obs_noise", self.obs_noise, 0.0, 10.0))
 
 
 @dataclass(frozen=True)
@@ -206,17 +211,17 @@ class MetricsConfig:
 
     def __post_init__(self) -> None:
         _set(self, "separation_threshold",
-             check_number("separation_threshold", self.separation_threshold, 0.0, 100, unit="m"))
+             _number("separation_threshold", self.separation_threshold, 0.0, 100, unit="m"))
         _set(self, "cohesion_threshold",
-             check_number("cohesion_threshold", self.cohesion_threshold, 0.0, 1000, lo_open=True,
+             _number("cohesion_threshold", self.cohesion_threshold, 0.0, 1000, lo_open=True,
                      unit="m"))
         _set(self, "alignment_threshold_deg",
-             check_number("alignment_threshold_deg", self.alignment_threshold_deg, 0.0, 360,
+             _number("alignment_threshold_deg", self.alignment_threshold_deg, 0.0, 360,
                      unit="degrees"))
         if not isinstance(self.wrap_alignment, bool):
             raise ValueError(f"wrap_alignment must be True or False, got {self.wrap_alignment!r}")
         for name in ("reward_separation", "reward_cohesion", "reward_alignment"):
-            _set(self, name, check_number(name, getattr(self, name), 0.0, 1000))
+            _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
 
 
 _SECTIONS = {"world": WorldConfig, "scenario": ScenarioConfig, "observation": ObservationConfig,
@@ -312,17 +317,17 @@ class ReynoldsParams:
     def __post_init__(self) -> None:
         for name in ("separation_weight", "cohesion_weight", "alignment_weight",
                      "leader_weight"):
-            _set(self, name, check_number(name, getattr(self, name), 0.0, 100))
-        _set(self, "horizon", check_number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
-        _set(self, "desired_separation", check_number("desired_separation", self.desired_separation,
+            _set(self, name, _number(name, getattr(self, name), 0.0, 100))
+        _set(self, "horizon", _number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
+        _set(self, "desired_separation", _number("desired_separation", self.desired_separation,
                                                  0.0, 100, unit="m"))
-        _set(self, "max_speed", check_number("max_speed", self.max_speed, 0.0, 5, lo_open=True,
+        _set(self, "max_speed", _number("max_speed", self.max_speed, 0.0, 5, lo_open=True,
                                         unit="m/s"))
-        _set(self, "max_force", check_number("max_force", self.max_force, 0.0, 1000, lo_open=True,
+        _set(self, "max_force", _number("max_force", self.max_force, 0.0, 1000, lo_open=True,
                                         unit="N"))
-        _set(self, "mass", check_number("mass", self.mass, 0.0, 100, lo_open=True, unit="kg"))
-        _set(self, "dt", check_number("dt", self.dt, 0.0, 1, lo_open=True, unit="s"))
-        _set(self, "startup_time", check_number("startup_time", self.startup_time, 0.0, 600,
+        _set(self, "mass", _number("mass", self.mass, 0.0, 100, lo_open=True, unit="kg"))
+        _set(self, "dt", _number("dt", self.dt, 0.0, 1, lo_open=True, unit="s"))
+        _set(self, "startup_time", _number("startup_time", self.startup_time, 0.0, 600,
                                            unit="s"))
 
 

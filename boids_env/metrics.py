@@ -163,9 +163,9 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
 
     Returns:
         ``V_sep``, ``V_coh``, ``V_align``, the per-follower ``count_*`` lists,
-        ``V_align_unwrapped`` and ``count_align_unwrapped`` (the study's unwrapped rule), ``duration`` (T,
-        s), ``steps``, ``min_distance`` (m), ``collisions``, ``polarization`` (episode mean)
-        and ``mean_leader_distance`` (m).
+        ``V_align_unwrapped`` and ``count_align_unwrapped`` (the study's unwrapped rule),
+        ``duration`` (T, s), ``steps``, ``min_distance`` (m), ``collisions``,
+        ``polarization`` (episode mean) and ``mean_leader_distance`` (m).
     """
     flags = flags_for(config, positions, commanded)
     out: dict[str, object] = dict(episode_violations(flags))

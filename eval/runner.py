@@ -98,26 +98,29 @@ def run_task(task: Task) -> dict[str, Any]:
         path = Path(task.trajectory_dir) / f"{task.key}.parquet"
         path.parent.mkdir(parents=True, exist_ok=True)
         result.recording.to_parquet(path)
-        metrics["trajectory"] = str(path)
+        metrics["trajectory"] = path.name
     return metrics
 
 
 def _safe_run(task: Task) -> tuple[bool, dict[str, Any]]:
     try:
         return True, run_task(task)
-    except Exception as exc:  # noqa: BLE001 - reported, the other episodes go on
+    except Exception as exc:
         return False, {"key": task.key, "error": f"{type(exc).__name__}: {exc}",
                        "traceback": traceback.format_exc()}
 
 
-def plan(policies: Sequence[PolicySpec], suite: Suite, trajectory_dir: str | None = None
-         ) -> list[Task]:
-    """The episodes to run: one per (policy, distinct configuration, seed)."""
+def plan(policies: Sequence[PolicySpec], suite: Suite, trajectory_dir: str | None = None,
+         all_trajectories: bool = False) -> list[Task]:
+    """The episodes to run: one per (policy, distinct configuration, seed). Trajectories go
+    to ``trajectory_dir`` for every episode with ``all_trajectories``, else for the first
+    seed of each case (the report's trajectory figures)."""
     tasks, seen = [], set()
     for policy in policies:
         for case in suite.cases:
             for seed in suite.seeds:
-                task = Task(policy, case, seed, trajectory_dir)
+                keep = all_trajectories or seed == suite.seeds[0]
+                task = Task(policy, case, seed, trajectory_dir if keep else None)
                 if task.key not in seen:
                     seen.add(task.key)
                     tasks.append(task)
@@ -150,7 +153,8 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
         workers: parallel processes (default: the number of cores); 1 runs in this process.
         backend: ``process`` (a local process pool) or ``ray`` (``ray.init()`` must reach a
             cluster or starts a local one; needs the ``ray`` extra).
-        keep_trajectories: write each episode's trajectory to ``out/trajectories/KEY.parquet``.
+        keep_trajectories: write every episode's trajectory to
+            ``out/trajectories/KEY.parquet`` (otherwise only the first seed's of each case).
         progress: show a progress bar (tqdm).
         runner: the function running one task (tests inject failures with it).
     """
@@ -161,8 +165,7 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    traj = str(out / "trajectories") if keep_trajectories else None
-    tasks = plan(policies, suite, traj)
+    tasks = plan(policies, suite, str(out / "trajectories"), keep_trajectories)
     done = {row["key"]: row for row in read_jsonl(out / EPISODES)}
     todo = [t for t in tasks if t.key not in done]
     if (out / ERRORS).exists():
@@ -200,7 +203,7 @@ def _execute(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]], worke
             return _safe_run(task)
         try:
             return True, run(task)
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             return False, {"key": task.key, "error": f"{type(exc).__name__}: {exc}"}
 
     if not tasks:
@@ -225,7 +228,7 @@ def _execute(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]], worke
                 try:
                     value = fut.result()
                     yield value if fn is _safe_run else (True, value)
-                except Exception as exc:  # noqa: BLE001 - e.g. a worker killed
+                except Exception as exc:
                     yield False, {"key": task.key, "error": f"{type(exc).__name__}: {exc}"}
 
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from boids_env.config import FIELD_OWNER, ReynoldsParams
+from boids_env.config import FIELD_OWNER, EnvConfig, ReynoldsParams, reynolds_params
 
 POLICY_FIELDS = tuple(f.name for f in fields(ReynoldsParams))
 """Case fields that parameterise the Reynolds policy (others are env config fields)."""
@@ -168,6 +168,12 @@ def suite_from_dict(data: dict[str, Any], default_name: str = "custom") -> Suite
                           {k: v for k, v in merged.items() if k in POLICY_FIELDS}))
     if not cases:
         raise ValueError("a suite needs at least one [[factor]] or [[case]]")
+    for case in cases:
+        try:
+            EnvConfig().replace(**case.env)
+            reynolds_params("paper", **case.policy)
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"case {case.name!r}: {exc}") from exc
     names = [c.name for c in cases]
     if len(set(names)) != len(names):
         raise ValueError(f"case names must be unique, got {names}")

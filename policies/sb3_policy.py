@@ -81,7 +81,7 @@ class SB3Policy(BatchPolicy):
         for name in names:
             try:
                 model = algorithm_class(name).load(path, device=device)
-            except Exception as exc:  # noqa: BLE001 - each algorithm is tried in turn
+            except Exception as exc:
                 errors.append(f"{name}: {exc}")
                 continue
             return cls(model, meta.get("env_fields"), name=path.stem)

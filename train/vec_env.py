@@ -129,7 +129,7 @@ def _worker(conn: Any, specs: Sequence[CopySpec]) -> None:  # pragma: no cover -
                 return
             try:
                 conn.send(("ok", getattr(shard, cmd)(*args)))
-            except Exception as exc:  # noqa: BLE001 - reported to the parent
+            except Exception as exc:
                 conn.send(("error", exc))
     except (EOFError, KeyboardInterrupt):
         shard.close()
@@ -224,7 +224,7 @@ class FlockVecEnv(VecEnv):
         self.seed(seed)
 
     # ------------------------------------------------------------------------- contract
-    def seed(self, seed: int | None = None) -> Sequence[None | int]:
+    def seed(self, seed: int | None = None) -> Sequence[int | None]:
         """Gives every copy its own child of ``SeedSequence(seed)``; takes effect at the next
         :meth:`reset`. Returns the per-slot seeds in SB3's style (the base seed per slot)."""
         if seed is None:

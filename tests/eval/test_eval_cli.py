@@ -1,0 +1,48 @@
+"""`boids eval` and `boids report` end to end on a tiny suite."""
+
+import subprocess
+import sys
+
+import pandas as pd
+import pytest
+
+from boids_env.cli import main
+
+
+@pytest.mark.slow
+def test_boids_eval_writes_every_file_and_report_rebuilds(tmp_path):
+    suite = tmp_path / "tiny.toml"
+    suite.write_text('name = "tiny"\nseeds = 2\n[defaults]\nrobots = 7\nmax_cycles = 40\n'
+                     '[[factor]]\nname = "leader_speed"\nlevels = [0.5, 0.6]\n')
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "boids_env.cli", "eval", "--policy", "reynolds",
+         "--policy", "random", "--suite", str(suite), "--workers", "2", "--out", str(out),
+         "--no-progress"], capture_output=True, text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr
+    files = {p.name for p in out.iterdir()}
+    assert {"results.parquet", "results.csv", "episodes.jsonl", "suite.json", "report.md",
+            "report.html", "stats_anova.csv", "stats_tukey.csv", "policy_comparison.csv",
+            "figures", "trajectories"} <= files
+    table = pd.read_parquet(out / "results.parquet")
+    assert len(table) == 8 and set(table["policy"]) == {"reynolds[paper]", "random"}
+    assert {"policy", "suite", "case", "factor", "level", "seed", "V_sep", "V_coh", "V_align",
+            "count_sep", "min_distance", "steps", "wall_time"} <= set(table.columns)
+    assert len(pd.read_csv(out / "results.csv")) == 8
+    figures = {p.name for p in (out / "figures").iterdir()}
+    assert "policies_total.png" in figures and any(f.startswith("traj_") for f in figures)
+    report = (out / "report.md").read_text()
+    assert "One-way ANOVA" in report and "Policies compared per case" in report
+    (out / "report.md").unlink()
+    assert main(["report", str(out)]) == 0
+    assert (out / "report.md").read_text() == report
+
+
+def test_report_of_a_missing_folder_is_a_clear_error(tmp_path, capsys):
+    assert main(["report", str(tmp_path / "none")]) == 2
+    assert "no results.parquet" in capsys.readouterr().err
+
+
+def test_eval_rejects_a_preset_on_a_non_reynolds_policy(tmp_path, capsys):
+    assert main(["eval", "--policy", "random@paper", "--out", str(tmp_path)]) == 2
+    assert "only reynolds takes a @preset" in capsys.readouterr().err

@@ -1,0 +1,55 @@
+"""Suites as data: the study's Table III and user TOML files."""
+
+import pytest
+
+from eval.suites import PAPER, ROBUSTNESS, load_suite
+
+
+def test_paper_suite_is_table_iii():
+    assert len(PAPER.cases) == 9 and PAPER.seeds == (0, 1, 2, 3, 4)
+    assert {g: [c.level for c in cs] for g, cs in PAPER.groups.items()} == {
+        "rq1": ["0.5", "0.55", "0.6"], "rq2": ["1.0", "1.1", "1.2"], "rq3": ["7", "13", "19"]}
+    # cases 2, 4 and 8 are the same configuration: 7 distinct ones
+    keys = [c.config_key for c in PAPER.cases]
+    assert len(set(keys)) == 7
+    assert keys[1] == keys[3] == keys[7]
+    assert PAPER.cases[3].policy == {"leader_weight": 1.0}
+    assert PAPER.cases[6].env == {"robots": 7, "leader_speed": 0.55}
+
+
+def test_robustness_suite_covers_future_work():
+    factors = {c.factor for c in ROBUSTNESS.cases}
+    assert factors == {"path", "init_jitter", "robots", "obs_noise"}
+    assert max(c.env["robots"] for c in ROBUSTNESS.cases) == 61
+
+
+def test_toml_suite(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text('name = "mine"\nseeds = [3, 4]\n[defaults]\nrobots = 7\nmax_cycles = 50\n'
+                    '[[factor]]\nname = "leader_speed"\nlevels = [0.5, 0.6]\n'
+                    '[[case]]\nname = "heavy"\nleader_weight = 1.3\n')
+    suite = load_suite(path)
+    assert suite.name == "mine" and suite.seeds == (3, 4)
+    assert [c.name for c in suite.cases] == ["leader_speed=0.5", "leader_speed=0.6", "heavy"]
+    assert suite.cases[0].env == {"robots": 7, "max_cycles": 50, "leader_speed": 0.5}
+    assert suite.cases[2].policy == {"leader_weight": 1.3}
+    assert suite.with_seeds(2).seeds == (0, 1)
+
+
+@pytest.mark.parametrize("text, match", [
+    ('[[factor]]\nname = "speed"\nlevels = [1]\n', "unknown field"),
+    ('seeds = 2\n', "at least one"),
+    ('[[case]]\nname="a"\nrobots = 1\n', "robots must be"),
+    ('colour = 1\n[[case]]\nname="a"\n', "unknown suite key"),
+    ('[[case]\n', "cannot read suite file"),
+])
+def test_bad_toml_suites_are_clear_errors(tmp_path, text, match):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        load_suite(path)
+
+
+def test_unknown_suite_name():
+    with pytest.raises(FileNotFoundError, match="paper"):
+        load_suite("nope")

@@ -1,0 +1,128 @@
+"""Training runs: determinism, config validation, `boids train` end to end, SB3Policy."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from policies.registry import load_policy
+from policies.sb3_policy import SB3Policy, read_meta
+from train.config import TrainConfig
+from train.run import train
+
+TINY = {"total_timesteps": 1200, "group_sizes": (4, 5), "copies": 2, "n_steps": 80,
+        "batch_size": 140, "n_epochs": 2, "eval_every": 0, "checkpoint_every": 0,
+        "env_fields": {"max_cycles": 30, "neighbours": 4}}
+
+
+def _params(path):
+    policy = SB3Policy.load(path)
+    return [p.detach().clone() for p in policy.model.policy.parameters()]
+
+
+def test_two_runs_with_the_same_seed_give_identical_parameters(tmp_path):
+    a = train(TrainConfig(**TINY, seed=7), tmp_path / "a")
+    b = train(TrainConfig(**TINY, seed=7), tmp_path / "b")
+    c = train(TrainConfig(**TINY, seed=8), tmp_path / "c")
+    pa, pb, pc = _params(a), _params(b), _params(c)
+    assert all(torch.equal(x, y) for x, y in zip(pa, pb, strict=True))
+    assert not all(torch.equal(x, y) for x, y in zip(pa, pc, strict=True))
+
+
+def test_model_zip_carries_metadata_and_loads_as_a_policy(tmp_path):
+    path = train(TrainConfig(**{**TINY, "eval_every": 600, "checkpoint_every": 600}), tmp_path)
+    meta = read_meta(path)
+    assert meta["algorithm"] == "ppo" and meta["env_fields"]["neighbours"] == 4
+    assert (tmp_path / "best_model.zip").is_file()
+    assert len(list((tmp_path / "checkpoints").glob("model_*_steps.zip"))) >= 1
+    evals = (tmp_path / "evaluations.csv").read_text().splitlines()
+    assert evals[0] == "timesteps,V_sep,V_coh,V_align,total" and len(evals) >= 2
+    assert json.loads((tmp_path / "config.json").read_text())["group_sizes"] == [4, 5]
+    policy = load_policy(str(path))
+    obs = np.zeros((3, 6 + 5 * 4), np.float32)
+    actions = policy.act_batch(obs)
+    assert actions.shape == (3, 2) and np.all(np.abs(actions) <= 0.5)
+    assert np.array_equal(actions, policy.act_batch(obs))  # deterministic
+    with pytest.raises(ValueError, match="observations of size 26"):
+        policy.act_batch(np.zeros((3, 96), np.float32))
+
+
+def test_resume_continues_to_the_total(tmp_path):
+    cfg = TrainConfig(**{**TINY, "checkpoint_every": 600})
+    train(cfg, tmp_path / "first")
+    ckpt = sorted((tmp_path / "first" / "checkpoints").glob("*.zip"))[0]
+    path = train(cfg.replace(total_timesteps=2400), tmp_path / "resumed", resume=ckpt)
+    assert SB3Policy.load(path).model.num_timesteps >= 2400
+    with pytest.raises(FileNotFoundError, match="checkpoint to resume not found"):
+        train(cfg, tmp_path / "x", resume=tmp_path / "missing.zip")
+
+
+def test_sac_runs(tmp_path):
+    cfg = TrainConfig(**{**TINY, "algorithm": "sac", "learning_starts": 100,
+                         "batch_size": 64, "buffer_size": 5000, "total_timesteps": 400})
+    path = train(cfg, tmp_path)
+    assert read_meta(path)["algorithm"] == "sac"
+    assert SB3Policy.load(path).act_batch(np.zeros((2, 26), np.float32)).shape == (2, 2)
+
+
+@pytest.mark.parametrize("changes, match", [
+    ({"algorithm": "dqn"}, "algorithm must be one of"),
+    ({"total_timesteps": 0}, "total_timesteps must be in"),
+    ({"group_sizes": ()}, "group_sizes must not be empty"),
+    ({"group_sizes": (1,)}, "group_sizes must be in"),
+    ({"leader_speeds": (0.5, -1.0)}, "leader_speeds must be in"),
+    ({"paths": ("external",)}, "paths entries must be among"),
+    ({"processes": 3, "copies": 2}, r"processes must be in \[1, 2\]"),
+    ({"env_fields": {"robots": 5}}, "reserved"),
+    ({"env_fields": {"colour": 1}}, "unknown"),
+    ({"learning_rate": float("nan")}, "learning_rate must be in"),
+])
+def test_bad_config_values_are_clear_errors(changes, match):
+    with pytest.raises(ValueError, match=match):
+        TrainConfig(**changes)
+
+
+def test_config_from_toml(tmp_path):
+    path = tmp_path / "run.toml"
+    path.write_text('[train]\nalgorithm = "ppo"\ngroup_sizes = [7, 19]\ncopies = 4\n'
+                    '[train.env_fields]\nneighbours = 8\n')
+    cfg = TrainConfig.from_toml(path, seed=3, copies=None)
+    assert cfg.group_sizes == (7, 19) and cfg.copies == 4 and cfg.seed == 3
+    assert cfg.env_fields == {"neighbours": 8}
+    (tmp_path / "bad.toml").write_text("copies = [\n")
+    with pytest.raises(ValueError, match="cannot read training config"):
+        TrainConfig.from_toml(tmp_path / "bad.toml")
+    (tmp_path / "typo.toml").write_text("copiez = 3\n")
+    with pytest.raises(ValueError, match="unknown training config field"):
+        TrainConfig.from_toml(tmp_path / "typo.toml")
+
+
+def test_unreadable_model_files_are_clear_errors(tmp_path):
+    with pytest.raises(FileNotFoundError, match="not found"):
+        load_policy(str(tmp_path / "none.zip"))
+    bad = tmp_path / "bad.zip"
+    bad.write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match="cannot read SB3 model"):
+        load_policy(str(bad))
+
+
+@pytest.mark.slow
+def test_boids_train_then_boids_run(tmp_path):
+    out = tmp_path / "t"
+    proc = subprocess.run(
+        [sys.executable, "-m", "boids_env.cli", "train", "--timesteps", "1000",
+         "--group-sizes", "5", "--copies", "1", "--eval-every", "0", "--checkpoint-every", "0",
+         "--no-progress", "--out", str(out)], capture_output=True, text=True, timeout=600,
+        check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "model.zip").is_file() and (out / "config.json").is_file()
+    run = subprocess.run(
+        [sys.executable, "-m", "boids_env.cli", "run", "--policy", str(out / "model.zip"),
+         "--robots", "5", "--max-cycles", "30", "--out", str(tmp_path / "r")],
+        capture_output=True, text=True, timeout=600, check=False)
+    assert run.returncode == 0, run.stderr
+    metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert metrics["steps"] == 30 and {"V_sep", "V_coh", "V_align"} <= metrics.keys()

@@ -1,0 +1,116 @@
+"""FlockVecEnv against SB3's VecEnv contract."""
+
+import numpy as np
+import pytest
+
+from train.vec_env import EPISODE_INFO, CopySpec, FlockVecEnv
+
+SHORT = {"max_cycles": 25}
+
+
+def _specs(*sizes, speeds=(0.55,)):
+    return [CopySpec(n, speeds, env_fields=dict(SHORT)) for n in sizes]
+
+
+def _rollout(venv, steps, seed=0):
+    rng = np.random.default_rng(seed)
+    obs = [venv.reset()]
+    out = []
+    for _ in range(steps):
+        actions = rng.uniform(-0.5, 0.5, (venv.num_envs, 2)).astype(np.float32)
+        o, r, d, infos = venv.step(actions)
+        obs.append(o)
+        out.append((o, r, d, infos))
+    return obs, out
+
+
+def test_shapes_spaces_and_slots_of_mixed_group_sizes():
+    venv = FlockVecEnv(_specs(7, 13, 5), seed=1)
+    try:
+        assert venv.num_envs == 6 + 12 + 4
+        obs = venv.reset()
+        assert obs.shape == (22, *venv.observation_space.shape) and obs.dtype == np.float32
+        assert all(venv.observation_space.contains(o) for o in obs)
+        o, r, d, infos = venv.step(np.zeros((22, 2), np.float32))
+        assert o.shape == obs.shape and r.shape == (22,) and d.shape == (22,)
+        assert r.dtype == np.float32 and d.dtype == bool and len(infos) == 22
+        assert venv.get_attr("render_mode") == [None] * 22
+        robots = venv.get_attr("config", indices=[0, 6, 21])
+        assert [c.scenario.robots for c in robots] == [7, 13, 5]
+    finally:
+        venv.close()
+
+
+def test_auto_reset_truncation_and_terminal_observation():
+    venv = FlockVecEnv(_specs(4, 3), seed=2)
+    try:
+        _obs, steps = _rollout(venv, 25)
+        for _o, _r, d, infos in steps[:-1]:
+            assert not d.any() and all("terminal_observation" not in i for i in infos)
+        last_obs, _, done, infos = steps[-1]
+        assert done.all()
+        assert all(i["TimeLimit.truncated"] is True for i in infos)
+        terminal = np.stack([i["terminal_observation"] for i in infos])
+        # the returned observation is the next episode's first (everything at rest)
+        assert not np.array_equal(terminal, last_obs)
+        assert np.all(last_obs[:, 0:2] == 0) and np.any(terminal[:, 0:2] != 0)
+        first = [i for i in infos if EPISODE_INFO in i]
+        assert len(first) == 2 and {f[EPISODE_INFO]["robots"] for f in first} == {3, 4}
+        # episode continues after the auto-reset
+        _, _, d, _ = venv.step(np.zeros((venv.num_envs, 2), np.float32))
+        assert not d.any()
+    finally:
+        venv.close()
+
+
+def test_seeding_is_reproducible_and_copies_never_share_streams():
+    def run(seed):
+        venv = FlockVecEnv(_specs(5, 5, speeds=(0.5, 0.6)), seed=seed)
+        try:
+            obs, steps = _rollout(venv, 60)
+            return np.stack(obs), [s[3] for s in steps]
+        finally:
+            venv.close()
+
+    a, _info_a = run(3)
+    b, _ = run(3)
+    c, _ = run(4)
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+    # the two identical copies got different episodes (their own seed streams)
+    assert not np.array_equal(a[:, :4], a[:, 4:])
+
+
+def test_worker_processes_give_the_same_trajectories():
+    specs = _specs(5, 7, 4)
+    one = FlockVecEnv(specs, seed=5)
+    two = FlockVecEnv(specs, seed=5, processes=2)
+    try:
+        obs1, steps1 = _rollout(one, 30)
+        obs2, steps2 = _rollout(two, 30)
+        assert np.array_equal(np.stack(obs1), np.stack(obs2))
+        assert all(np.array_equal(s1[1], s2[1]) for s1, s2 in zip(steps1, steps2, strict=True))
+        assert two.env_method("episode_metrics", indices=[0])[0]["steps"] == 5
+    finally:
+        one.close()
+        two.close()
+
+
+def test_bad_arguments_are_clear_errors():
+    with pytest.raises(ValueError, match="processes must be an integer in"):
+        FlockVecEnv(_specs(5), processes=2)
+    with pytest.raises(ValueError, match="robots must be >= 2"):
+        FlockVecEnv([CopySpec(1)])
+    with pytest.raises(ValueError, match="same observation size"):
+        FlockVecEnv([CopySpec(5), CopySpec(5, env_fields={"neighbours": 3})])
+    venv = FlockVecEnv(_specs(5))
+    try:
+        venv.reset()
+        with pytest.raises(ValueError, match=r"actions must have shape \(4, 2\)"):
+            venv.step(np.zeros((3, 2), np.float32))
+        with pytest.raises(ValueError, match="finite"):
+            venv.step(np.full((4, 2), np.nan, np.float32))
+        with pytest.raises(ValueError, match="seed must be"):
+            venv.seed(-1)
+    finally:
+        venv.close()
