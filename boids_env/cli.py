@@ -31,6 +31,11 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="runs/latest", help="output folder (runs/latest)")
     p.add_argument("--video", action="store_true", help="also write episode.gif")
     p.add_argument("--bag", action="store_true", help="also write a ROS 1 bag (ros extra)")
+    p.add_argument("--render", choices=("none", "human"), default="none",
+                   help="human: live window (arrow keys drive a --path external leader, "
+                   "1-6 and +/- tune the Reynolds parameters); nothing is written")
+    p.add_argument("--fast", type=float, default=4.0,
+                   help="speed-up of the live window's fast mode, key f (4)")
     p.set_defaults(func=_cmd_run)
 
 
@@ -44,6 +49,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         fields["arena_half_size"] = args.arena_half_size
     if args.no_wrap:
         fields["wrap_alignment"] = False
+    if args.render == "human":
+        from eval.live import run_live
+
+        _, metrics = run_live(args.policy, preset=args.preset, seed=args.seed,
+                           fast_factor=args.fast, env_fields=fields,
+                           leader_weight=args.leader_weight)
+        print({k: metrics[k] for k in ("V_sep", "V_coh", "V_align", "duration")})
+        return 0
     run(args.policy, out=args.out, seed=args.seed, preset=args.preset,
         leader_weight=args.leader_weight, video=args.video, bag=args.bag, env_fields=fields)
     return 0

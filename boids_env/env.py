@@ -110,6 +110,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self.episode_config = self.config
         self.overlays: dict[str, npt.NDArray[np.float64]] = {}
         """Per-follower vectors (F, 2) the renderer draws as arrows (e.g. rule forces)."""
+        self.hud_text: list[str] = []
+        """Extra lines the renderer writes over the arena (e.g. the live window's controls)."""
 
     # ----------------------------------------------------------------------------- spaces
     def observation_space(self, agent: AgentID) -> spaces.Box:

@@ -58,6 +58,8 @@ class Renderer:
         self._font = pygame.font.Font(None, 22)
         self._window: Any = None
         self._clock: Any = None
+        self.fps: float = 10.0
+        """Frames per second of the human window (10 = real time; 0 = as fast as possible)."""
         if mode == "human":
             pygame.display.init()
             self._window = pygame.display.set_mode((SIZE, SIZE + HUD_HEIGHT))
@@ -103,7 +105,7 @@ class Renderer:
             self._window.blit(canvas, (0, 0))
             pygame.event.pump()
             pygame.display.flip()
-            self._clock.tick(env.metadata["render_fps"])
+            self._clock.tick(self.fps)
             return None
         return np.ascontiguousarray(np.transpose(pygame.surfarray.array3d(canvas), (1, 0, 2)))
 
@@ -127,6 +129,8 @@ class Renderer:
                 f"   V_align {m['V_align']:.3f}")
         pygame.draw.rect(canvas, (235, 235, 230), (0, SIZE, SIZE, HUD_HEIGHT))
         canvas.blit(self._font.render(text, True, (20, 20, 20)), (8, SIZE + 6))
+        for i, line in enumerate(getattr(env, "hud_text", ())):
+            canvas.blit(self._font.render(line, True, (60, 60, 60)), (14, 14 + 17 * i))
 
     def close(self) -> None:
         if self._window is not None:
