@@ -105,7 +105,7 @@ def nearest_neighbours(positions: FloatArray, horizon: float, k: int
         dist = np.sqrt(np.einsum("fnd,fnd->fn", diff, diff))
         dist[(dist <= 0.0) | (dist > horizon)] = np.inf  # self (distance 0) and far robots
         order = np.argsort(dist, axis=1, kind="stable")[:, :k]
-        nearest = np.take_along_axis(dist, order, axis=1)
+        nearest = dist[np.arange(followers)[:, None], order]
         width = order.shape[1]
     else:
         # k + 1: the follower finds itself at distance 0 first.
@@ -140,20 +140,23 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         velocity_bound: velocities are clipped to ±this (m/s), keeping obs inside the Box.
         arena_half_size: bounds the leader's relative position.
     """
-    vel = np.clip(velocities, -velocity_bound, velocity_bound)
-    followers = len(positions) - 1
-    obs = np.zeros((followers, layout.size), dtype=np.float32)
-    obs[:, layout.own_velocity] = vel[1:]
+    n = len(positions)
+    followers = n - 1
+    # One feature table, a row per robot plus an all-zero row that empty slots point at:
+    # position, velocity (clipped), valid flag. Slots are one gather from it.
+    table = np.zeros((n + 1, SLOT_SIZE))
+    table[:n, 0:2] = positions
+    np.clip(velocities, -velocity_bound, velocity_bound, out=table[:n, 2:4])
+    table[:n, 4] = 1.0
+    obs = np.empty((followers, layout.size), dtype=np.float32)
+    obs[:, layout.own_velocity] = table[1:n, 2:4]
     reach = 2 * arena_half_size
     obs[:, layout.leader_position] = np.clip(positions[0] - positions[1:], -reach, reach)
-    obs[:, layout.leader_velocity] = vel[0]
+    obs[:, layout.leader_velocity] = table[0, 2:4]
     if layout.neighbours:
         index, _ = nearest_neighbours(positions, horizon, layout.neighbours)
-        valid = index >= 0
-        safe = np.where(valid, index, 0)
-        slots = layout.slots(obs)
-        rel = positions[safe] - positions[1:, None, :]
-        slots[..., 0:2] = np.where(valid[..., None], np.clip(rel, -horizon, horizon), 0.0)
-        slots[..., 2:4] = np.where(valid[..., None], vel[safe], 0.0)
-        slots[..., 4] = valid
+        gathered = table[np.where(index >= 0, index, n)]  # (F, K, 5)
+        # relative position; distances are <= horizon, so no clipping is needed
+        gathered[..., 0:2] -= positions[1:, None, :] * gathered[..., 4:5]
+        obs[:, layout.neighbours_start:] = gathered.reshape(followers, -1)
     return obs

@@ -11,7 +11,9 @@ from policies.base import Policy
 from policies.random_policy import RandomPolicy
 from policies.reynolds import ReynoldsPolicy
 
-BUILTIN = ("reynolds", "random")
+BUILTIN = ("reynolds", "random", "learned")
+LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_followers.zip"
+"""The shipped PPO follower policy (train/recipes/ppo_followers.toml); needs the train extra."""
 
 
 def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
@@ -19,7 +21,8 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
     """Builds the policy named by ``spec``.
 
     Args:
-        spec: ``reynolds`` (the study's controller), ``random``, a path to a saved SB3 model
+        spec: ``reynolds`` (the study's controller), ``random``, ``learned`` (the shipped PPO
+            followers), a path to a saved SB3 model
             (``.zip``), or ``module:object`` naming a Policy instance, class or factory.
         preset: Reynolds parameter preset (``paper`` or ``boids_ros``).
         max_speed: the random policy's speed range (m/s).
@@ -29,6 +32,8 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         return ReynoldsPolicy(preset, **reynolds_overrides)
     if spec == "random":
         return RandomPolicy(max_speed)
+    if spec == "learned":
+        spec = str(LEARNED_MODEL)
     if spec.endswith(".zip"):
         if not Path(spec).is_file():
             raise FileNotFoundError(f"policy model file not found: {spec}")
