@@ -96,7 +96,7 @@ ROBUSTNESS = Suite("robustness", tuple(
     _sweep("path", "path", [(p, {"path": p}) for p in
                             ("square", "circle", "figure_eight", "random_waypoints")], CONTROLLED)
     + _sweep("placement", "init_jitter", [(j, {"init_jitter": float(j)})
-                                          for j in ("0.05", "0.15", "0.25")], CONTROLLED)
+                                          for j in ("0.05", "0.12", "0.2")], CONTROLLED)
     + _sweep("group_size", "robots", [(n, {"robots": int(n)}) for n in ("13", "31", "61")],
              CONTROLLED)
     + _sweep("noise", "obs_noise", [(s, {"obs_noise": float(s)})

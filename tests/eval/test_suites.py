@@ -2,6 +2,8 @@
 
 import pytest
 
+from boids_env.config import reynolds_params
+from boids_env.env import BoidsEnv
 from eval.suites import PAPER, ROBUSTNESS, load_suite
 
 
@@ -21,6 +23,14 @@ def test_robustness_suite_covers_future_work():
     factors = {c.factor for c in ROBUSTNESS.cases}
     assert factors == {"path", "init_jitter", "robots", "obs_noise"}
     assert max(c.env["robots"] for c in ROBUSTNESS.cases) == 61
+
+
+@pytest.mark.parametrize("suite", [PAPER, ROBUSTNESS], ids=["paper", "robustness"])
+def test_every_built_in_case_is_a_valid_configuration(suite):
+    for case in suite.cases:
+        env = BoidsEnv(**case.env)  # validates, and checks the layout and path fit
+        env.reset(seed=0)
+        reynolds_params("paper", **case.policy)
 
 
 def test_toml_suite(tmp_path):
