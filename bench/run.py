@@ -95,6 +95,23 @@ def mpe_loop(agents: int, steps: int) -> Callable[[], int] | None:
     return run
 
 
+def paper_suite_seconds() -> float | None:
+    """Wall time of ``boids eval --suite paper`` for the Reynolds policy on 2 workers, from
+    scratch in a temporary folder (None without the eval extra)."""
+    import tempfile
+    import time
+
+    try:
+        from eval.runner import PolicySpec, run_suite
+        from eval.suites import PAPER
+    except ImportError:
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        run_suite([PolicySpec("reynolds")], PAPER, tmp, workers=2, progress=False)
+        return time.perf_counter() - start
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer sizes and repeats")
@@ -122,9 +139,22 @@ def main(argv: Sequence[str] | None = None) -> int:
             print("mpe2 not installed (pip install 'boids-env[bench]'): MPE2 skipped")
             break
         record("mpe2 simple_spread", n, n, timed(loop, repeats))
+    by_kind = {(r["kind"], r["robots"]): r["env_steps_per_s"]["median"] for r in rows}
+    ratios = {}
+    if ("env random", 19) in by_kind and ("mpe2 simple_spread", 18) in by_kind:
+        ratios["env_random_19_over_mpe2_18"] = (by_kind[("env random", 19)]
+                                                / by_kind[("mpe2 simple_spread", 18)])
+    if ("env random", 19) in by_kind:
+        ratios["env_random_19_over_physics_19"] = (by_kind[("env random", 19)]
+                                                   / by_kind[("physics", 19)])
+    for name, value in ratios.items():
+        print(f"{name:<32} {value:6.2f}")
+    suite_time = None if args.quick else paper_suite_seconds()
+    if suite_time is not None:
+        print(f"paper suite (45 episodes, Reynolds, 2 workers): {suite_time:.1f} s wall")
     out = {"machine": {"python": platform.python_version(), "cpu": platform.processor() or
                        platform.machine(), "cores": __import__("os").cpu_count()},
-           "results": rows}
+           "results": rows, "ratios": ratios, "paper_suite_seconds": suite_time}
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=2))
     print(f"wrote {args.out}")

@@ -30,9 +30,10 @@ RULES = ("separation", "cohesion", "alignment", "leader")
 
 def clip_norm(x: FloatArray, limit: float) -> FloatArray:
     """Scales rows of ``x`` (..., 2) whose norm exceeds ``limit`` down to ``limit``."""
-    norm = np.sqrt(np.einsum("...d,...d->...", x, x))[..., None]
-    scale = np.where(norm > limit, limit / np.where(norm > 0, norm, 1.0), 1.0)
-    return x * scale
+    norm = np.hypot(x[..., 0], x[..., 1])
+    # min(1, limit / norm) is exactly 1 where the norm is within the limit (or zero)
+    scale = np.minimum(1.0, limit / np.maximum(norm, 1e-300))
+    return x * scale[..., None]
 
 
 def reynolds_forces(rel: FloatArray, vel: FloatArray, valid: npt.NDArray[np.bool_],
@@ -50,22 +51,23 @@ def reynolds_forces(rel: FloatArray, vel: FloatArray, valid: npt.NDArray[np.bool
     """
     dist = np.sqrt(np.einsum("fkd,fkd->fk", rel, rel))
     near = valid & (dist > 0) & (dist <= p.horizon)
-    count = near.sum(axis=1)[:, None]
+    nearf = near.astype(float)
+    count = nearf.sum(axis=1)[:, None]
     has = count > 0
-    mean_rel = np.where(has, (rel * near[..., None]).sum(axis=1) / np.maximum(count, 1), 0.0)
+    # Sums over the neighbour slots as (F, K) x (F, K, 2) contractions.
+    mean_rel = np.einsum("fk,fkd->fd", nearf, rel) / np.maximum(count, 1)
     cohesion = (p.max_force / p.horizon) * mean_rel
 
     close = near & (dist < p.desired_separation)
     n_close = close.sum(axis=1)[:, None]
-    safe = np.where(close, dist, 1.0)[..., None]
-    push = np.where(close[..., None], -rel / safe**3, 0.0).sum(axis=1) / np.maximum(n_close, 1)
+    inv_cube = np.divide(1.0, dist**3, out=np.zeros_like(dist), where=close)
+    push = -np.einsum("fk,fkd->fd", inv_cube, rel) / np.maximum(n_close, 1)
     separation = clip_norm(push, 2 * p.max_force)
 
-    total = (vel * near[..., None]).sum(axis=1)
+    total = np.einsum("fk,fkd->fd", nearf, vel)
     norm = np.sqrt(np.einsum("fd,fd->f", total, total))[:, None]
     direction = np.where(norm > 0, total / np.where(norm > 0, norm, 1.0), [1.0, 0.0])
-    alignment = np.where(has, clip_norm(direction * p.max_speed - own_velocity, p.max_force),
-                         0.0)
+    alignment = clip_norm(direction * p.max_speed - own_velocity, p.max_force) * has
     return {"separation": separation, "cohesion": cohesion, "alignment": alignment,
             "leader": np.array(leader_offset, dtype=float)}
 
