@@ -69,3 +69,28 @@ def test_snapshot_shapes_leader_first():
     assert np.array_equal(s.positions[0], [0.0, 0.0])
     s.positions[:] = 99  # a copy: the env is unaffected
     assert e.snapshot().positions[0, 0] == 0.0
+
+
+def test_a_flock_of_1000_runs_renders_and_stays_physical():
+    """Scale: N = 1000 in a ±14 m arena with the Reynolds policy in the loop."""
+    from boids_env.metrics import pairwise_min_distance
+    from policies import ReynoldsPolicy
+
+    e = parallel_env(robots=1000, arena_half_size=14.0, render_mode="rgb_array")
+    policy = ReynoldsPolicy()
+    obs, _ = e.reset(seed=0)
+    policy.reset(0)
+    radius, half = e.config.world.robot_radius, e.config.world.arena_half_size
+    worst = 0.0
+    for _ in range(60):  # start-up hold, then 4 s of flocking
+        obs, *_ = e.step(policy.act(obs))
+        snap = e.snapshot()
+        assert np.isfinite(snap.positions).all() and np.isfinite(snap.velocities).all()
+        assert np.all(np.abs(snap.positions) <= half - radius + 0.005)
+        worst = max(worst, 2 * radius - float(pairwise_min_distance(snap.positions[None])[0]))
+    assert worst <= 0.005, f"overlap {worst * 1000:.2f} mm"
+    moved = np.linalg.norm(snap.velocities[1:], axis=1)
+    assert (moved > 0.05).mean() > 0.5, "most followers should be moving after the start-up"
+    frame = e.render()
+    assert frame.shape[2] == 3 and frame.std() > 0
+    assert all(np.isfinite(o).all() for o in obs.values())
