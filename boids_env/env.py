@@ -147,6 +147,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._finish_step: int | None = None
         self._history: list[npt.NDArray[np.float64]] = []
         self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)
+        mc = episode.metrics
+        self._reward_scale = np.array([-mc.reward_separation, -mc.reward_cohesion,
+                                       -mc.reward_alignment])[:, None] * wc.dt
         self.agents = list(self.possible_agents)
         self.overlays = {}
         obs = self._observe()
@@ -184,23 +187,24 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         commands = self._parse_actions(actions)
         world, leader = self._world, self._leader
         assert leader is not None
-        lead = leader.command(world.time, world.positions[0])
-        full = np.vstack([lead[None, :], commands])
+        full = np.empty((len(commands) + 1, 2))
+        full[0] = leader.command(world.time, world.positions[0])
+        full[1:] = commands
         world.step(full)
         self._history.append(world.commanded)
         cfg = self.episode_config
         flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded)
-        terms = metrics.reward_terms(flags, cfg.metrics, cfg.world.dt)
-        for row, name in enumerate(metrics.VIOLATIONS):
-            self._counts[row] += flags[name]
+        stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])  # (3, F)
+        self._counts += stacked
+        terms = self._reward_scale * stacked  # as metrics.reward_terms, in one array
         if self._finish_step is None and leader.finished:
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
             self._finish_step is not None and world.steps >= self._finish_step + self._tail_steps)
         agents = self.agents
         obs = self._observe()
-        reward = (terms["separation"] + terms["cohesion"] + terms["alignment"]).tolist()
-        sep, coh, ali = (terms[n].tolist() for n in metrics.VIOLATIONS)
+        reward = terms.sum(axis=0).tolist()
+        sep, coh, ali = terms.tolist()
         infos = {a: {"reward_separation": s, "reward_cohesion": c, "reward_alignment": al}
                  for a, s, c, al in zip(agents, sep, coh, ali, strict=True)}
         out = (dict(zip(agents, obs, strict=True)), dict(zip(agents, reward, strict=True)),
