@@ -31,6 +31,8 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="runs/latest", help="output folder (runs/latest)")
     p.add_argument("--video", action="store_true", help="also write episode.gif")
     p.add_argument("--bag", action="store_true", help="also write a ROS 1 bag (ros extra)")
+    p.add_argument("--mcap", action="store_true",
+                   help="also write a ROS 2 bag with MCAP storage, episode_mcap/ (ros extra)")
     p.add_argument("--render", choices=("none", "human"), default="none",
                    help="human: live window (arrow keys drive a --path external leader, "
                    "1-6 and +/- tune the Reynolds parameters); nothing is written")
@@ -58,7 +60,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print({k: metrics[k] for k in ("V_sep", "V_coh", "V_align", "duration")})
         return 0
     run(args.policy, out=args.out, seed=args.seed, preset=args.preset,
-        leader_weight=args.leader_weight, video=args.video, bag=args.bag, env_fields=fields)
+        leader_weight=args.leader_weight, video=args.video, bag=args.bag, mcap=args.mcap,
+        env_fields=fields)
     return 0
 
 

@@ -1,4 +1,5 @@
-"""Recordings to and from ROS 1 bags, as the original ROS system recorded its runs.
+"""Recordings to and from ROS bags, as the original ROS system recorded its runs: ROS 1 bags
+(the original's format) and ROS 2 bags with MCAP storage, both through the same library.
 
 Topics ``/robot_k/odom`` (nav_msgs/Odometry: position and measured velocity) and
 ``/robot_k/cmd_vel`` (geometry_msgs/Twist: the commanded velocity), robot 0 the leader, one
@@ -17,7 +18,9 @@ from boids_env.config import EnvConfig
 from boids_env.recording import Recording
 
 try:
-    from rosbags.rosbag1 import Reader, Writer
+    from rosbags import rosbag1, rosbag2
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2.enums import StoragePlugin
     from rosbags.typesys import Stores, get_typestore
 except ImportError as exc:  # pragma: no cover - depends on the install
     raise ImportError("ROS bag support needs rosbags: pip install 'boids-env[ros]'") from exc
@@ -27,17 +30,28 @@ TWIST = "geometry_msgs/msg/Twist"
 _TOPIC = re.compile(r"^/robot_(\d+)/(odom|cmd_vel)$")
 
 
-def write_bag(recording: Recording, path: str | Path) -> None:
-    """Writes ``recording`` as a ROS 1 bag at ``path`` (which must not exist)."""
+FORMATS = ("ros1", "mcap")
+
+
+def write_bag(recording: Recording, path: str | Path, *, format: str = "ros1") -> None:
+    """Writes ``recording`` at ``path`` (which must not exist): ``ros1``, a ROS 1 bag file
+    (Noetic message definitions), or ``mcap``, a ROS 2 bag folder with MCAP storage (Humble
+    definitions, CDR)."""
     path = Path(path)
+    if format not in FORMATS:
+        raise ValueError(f"format must be one of {FORMATS}, got {format!r}")
     if path.exists():
         raise FileExistsError(f"bag already exists: {path}")
-    store = get_typestore(Stores.ROS1_NOETIC)
+    ros1 = format == "ros1"
+    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    serialize = store.serialize_ros1 if ros1 else store.serialize_cdr
     t = store.types
     zero36 = np.zeros(36, dtype=np.float64)
     quat = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
     n = recording.positions.shape[1]
-    with Writer(path) as writer:
+    writer_cm = rosbag1.Writer(path) if ros1 else rosbag2.Writer(
+        path, version=9, storage_plugin=StoragePlugin.MCAP)
+    with writer_cm as writer:
         odom = [writer.add_connection(f"/robot_{k}/odom", ODOM, typestore=store)
                 for k in range(n)]
         cmd = [writer.add_connection(f"/robot_{k}/cmd_vel", TWIST, typestore=store)
@@ -49,7 +63,8 @@ def write_bag(recording: Recording, path: str | Path) -> None:
                 x, y = (float(v) for v in recording.positions[step, k])
                 vx, vy = (float(v) for v in recording.velocities[step, k])
                 cx, cy = (float(v) for v in recording.commanded[step, k])
-                header = t["std_msgs/msg/Header"](seq=step, stamp=stamp, frame_id="map")
+                header = (t["std_msgs/msg/Header"](seq=step, stamp=stamp, frame_id="map") if ros1
+                          else t["std_msgs/msg/Header"](stamp=stamp, frame_id="map"))
                 pose = t["geometry_msgs/msg/Pose"](
                     position=t["geometry_msgs/msg/Point"](x=x, y=y, z=0.0), orientation=quat)
                 twist = _twist(t, vx, vy)
@@ -58,8 +73,8 @@ def write_bag(recording: Recording, path: str | Path) -> None:
                     pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero36),
                     twist=t["geometry_msgs/msg/TwistWithCovariance"](twist=twist,
                                                                      covariance=zero36))
-                writer.write(odom[k], ns, store.serialize_ros1(msg, ODOM))
-                writer.write(cmd[k], ns, store.serialize_ros1(_twist(t, cx, cy), TWIST))
+                writer.write(odom[k], ns, serialize(msg, ODOM))
+                writer.write(cmd[k], ns, serialize(_twist(t, cx, cy), TWIST))
 
 
 def _twist(types: dict, vx: float, vy: float) -> object:
@@ -68,23 +83,27 @@ def _twist(types: dict, vx: float, vy: float) -> object:
 
 
 def read_bag(path: str | Path, config: EnvConfig | None = None) -> Recording:
-    """Reads a bag with ``/robot_k/odom`` and ``/robot_k/cmd_vel`` topics into a Recording.
+    """Reads a bag (ROS 1 file, or ROS 2 folder: MCAP or SQLite) with ``/robot_k/odom`` and
+    ``/robot_k/cmd_vel`` topics into a Recording.
 
     Samples are aligned by message order per robot (the k-th odom of every robot is sample k);
     ``config`` gives the thresholds and dt for the metrics (default: the study's, with the
     group size taken from the bag). Raises ``ValueError`` for a file that is not such a bag.
     """
-    store = get_typestore(Stores.ROS1_NOETIC)
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"bag not found: {path}")
+    store = get_typestore(Stores.ROS1_NOETIC if path.is_file() else Stores.ROS2_HUMBLE)
     odom: dict[int, list[tuple[int, float, float, float, float]]] = {}
     cmd: dict[int, list[tuple[float, float]]] = {}
     try:
-        with Reader(Path(path)) as reader:
+        with AnyReader([path], default_typestore=store) as reader:
             for conn, stamp, raw in reader.messages():
                 match = _TOPIC.match(conn.topic)
                 if not match:
                     continue
                 k = int(match.group(1))
-                msg = store.deserialize_ros1(raw, conn.msgtype)
+                msg = reader.deserialize(raw, conn.msgtype)
                 if match.group(2) == "odom":
                     p, v = msg.pose.pose.position, msg.twist.twist.linear
                     odom.setdefault(k, []).append((stamp, p.x, p.y, v.x, v.y))

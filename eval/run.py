@@ -31,10 +31,12 @@ def metrics_table(metrics: dict[str, Any]) -> str:
 
 def run(policy: str = "reynolds", *, out: str | Path | None = None, seed: int = 0,
         preset: str = "paper", leader_weight: float | None = None, video: bool = False,
-        bag: bool = False, frame_every: int = 2, env_fields: dict[str, Any] | None = None,
+        bag: bool = False, mcap: bool = False, frame_every: int = 2,
+        env_fields: dict[str, Any] | None = None,
         quiet: bool = False) -> EpisodeResult:
     """Runs one episode and writes ``metrics.json``, ``trajectory.parquet``, ``config.json``
-    (and ``episode.gif`` with ``video``, ``episode.bag`` with ``bag``) to ``out``."""
+    (and ``episode.gif`` with ``video``, ``episode.bag`` with ``bag``, the ROS 2 MCAP bag
+    folder ``episode_mcap`` with ``mcap``) to ``out``."""
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
     fields = dict(env_fields or {})
     pol = load_policy(policy, preset=preset, **overrides)
@@ -64,10 +66,13 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, seed: int = 
 
             iio.imwrite(out / "episode.gif", result.frames,
                         duration=int(1000 * env.config.world.dt * frame_every / 2), loop=0)
-        if bag:
+        if bag or mcap:
             from boids_env.rosbag import write_bag
 
-            write_bag(result.recording, out / "episode.bag")
+            if bag:
+                write_bag(result.recording, out / "episode.bag")
+            if mcap:
+                write_bag(result.recording, out / "episode_mcap", format="mcap")
         if not quiet:
             print(f"wrote {', '.join(sorted(p.name for p in out.iterdir()))} to {out}")
     env.close()

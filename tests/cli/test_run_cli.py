@@ -17,13 +17,13 @@ def test_boids_run_writes_every_file(tmp_path):
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
     proc = subprocess.run(
         [sys.executable, "-m", "boids_env.cli", "run", "--robots", "7", "--leader-speed", "0.6",
-         "--max-cycles", "40", "--seed", "3", "--video", "--bag", "--out", str(out)],
+         "--max-cycles", "40", "--seed", "3", "--video", "--bag", "--mcap", "--out", str(out)],
         capture_output=True, text=True, env=env, timeout=300, check=False)
     assert proc.returncode == 0, proc.stderr
     assert "V_sep" in proc.stdout and "V_align" in proc.stdout
     files = {p.name for p in out.iterdir()}
     assert {"metrics.json", "trajectory.parquet", "config.json", "episode.gif",
-            "episode.bag"} <= files
+            "episode.bag", "episode_mcap"} <= files
     metrics = json.loads((out / "metrics.json").read_text())
     assert {"V_sep", "V_coh", "V_align", "min_distance", "collisions"} <= metrics.keys()
     assert metrics["steps"] == 40
@@ -34,6 +34,7 @@ def test_boids_run_writes_every_file(tmp_path):
     from boids_env.rosbag import read_bag
 
     assert read_bag(out / "episode.bag").metrics()["V_align"] == metrics["V_align"]
+    assert read_bag(out / "episode_mcap").metrics()["V_align"] == metrics["V_align"]
     frames = iio.imread(out / "episode.gif")
     assert frames.ndim == 4 and frames.shape[0] >= 20
 

@@ -1,6 +1,7 @@
 """Recordings: Parquet round trip gives the live env's metrics exactly."""
 
 import numpy as np
+import pytest
 
 from boids_env import parallel_env
 from boids_env.recording import Recording
@@ -24,13 +25,16 @@ def test_parquet_round_trip_reproduces_metrics(tmp_path):
     assert back.extra == {"seed": 2}
 
 
-def test_ros_bag_round_trip_reproduces_metrics(tmp_path):
+@pytest.mark.parametrize("fmt, name", [("ros1", "ep.bag"), ("mcap", "ep_mcap")])
+def test_ros_bag_round_trip_reproduces_metrics(tmp_path, fmt, name):
     from boids_env.rosbag import read_bag, write_bag
 
     env = parallel_env(robots=7, max_cycles=150)
     rec = run_episode(env, ReynoldsPolicy(), seed=1).recording
-    write_bag(rec, tmp_path / "ep.bag")
-    back = read_bag(tmp_path / "ep.bag")
+    write_bag(rec, tmp_path / name, format=fmt)
+    if fmt == "mcap":
+        assert list((tmp_path / name).glob("*.mcap")), "a ROS 2 bag folder with MCAP storage"
+    back = read_bag(tmp_path / name)
     assert back.positions.shape == rec.positions.shape
     assert np.array_equal(back.positions, rec.positions)
     assert np.array_equal(back.commanded, rec.commanded)
@@ -39,11 +43,14 @@ def test_ros_bag_round_trip_reproduces_metrics(tmp_path):
 
 
 def test_unreadable_bag(tmp_path):
-    import pytest
-
-    from boids_env.rosbag import read_bag
+    from boids_env.rosbag import read_bag, write_bag
 
     junk = tmp_path / "junk.bag"
     junk.write_bytes(b"#ROSBAG V2.0\nnot really")
     with pytest.raises(ValueError, match="cannot read ROS bag"):
         read_bag(junk)
+    with pytest.raises(FileNotFoundError, match="bag not found"):
+        read_bag(tmp_path / "missing.bag")
+    rec = run_episode(parallel_env(robots=3, max_cycles=5), ReynoldsPolicy(), seed=0).recording
+    with pytest.raises(ValueError, match="format must be one of"):
+        write_bag(rec, tmp_path / "x", format="ros3")
