@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.config import ObservationConfig
 from boids_env.env import BoidsEnv
 from boids_env.recording import Recorder, Recording
 from policies.base import Policy
@@ -24,6 +25,17 @@ class EpisodeResult:
     frames: list[npt.NDArray[np.uint8]] = field(default_factory=list)
     wall_time: float = 0.0
     """Seconds the episode took (stepping, policy and recording; not the video encoding)."""
+
+
+def env_fields_for(policy: Policy, fields: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Env config fields for running ``policy``: those its observations need (a trained model's
+    ``env_fields``, e.g. its number of neighbour slots), then ``fields``; for a policy with
+    Reynolds parameters the sensing horizon covers its neighbour radius unless given."""
+    out = {**getattr(policy, "env_fields", {}), **(fields or {})}
+    params = getattr(policy, "params", None)
+    if params is not None and "horizon" not in out:
+        out["horizon"] = max(params.horizon, ObservationConfig().horizon)
+    return out
 
 
 def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,

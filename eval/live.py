@@ -114,14 +114,15 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
     import pygame
 
     from boids_env.env import BoidsEnv
+    from eval.episode import env_fields_for
     from policies.registry import load_policy
 
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
     policy = load_policy(policy_spec, preset=preset, **overrides)
-    fields = {**getattr(policy, "env_fields", {}), **(env_fields or {})}
+    fields = dict(env_fields or {})
     if getattr(policy, "params", None) is not None:
-        fields.setdefault("horizon", MAX_HORIZON)
-    env = BoidsEnv(render_mode="human", **fields)
+        fields.setdefault("horizon", MAX_HORIZON)  # room to raise the tuned horizon
+    env = BoidsEnv(render_mode="human", **env_fields_for(policy, fields))
     controls = LiveControls(getattr(policy, "params", None),
                             leader_speed=env.config.scenario.leader_speed)
     external = env.config.scenario.path == "external"

@@ -6,9 +6,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from boids_env.config import ObservationConfig
 from boids_env.env import BoidsEnv
-from eval.episode import EpisodeResult, run_episode
+from eval.episode import EpisodeResult, env_fields_for, run_episode
 from policies.registry import load_policy
 
 METRIC_ROWS = (("V_sep", "separation violation (study)"), ("V_coh", "cohesion violation (study)"),
@@ -38,13 +37,10 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, seed: int = 
     (and ``episode.gif`` with ``video``, ``episode.bag`` with ``bag``, the ROS 2 MCAP bag
     folder ``episode_mcap`` with ``mcap``) to ``out``."""
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
-    fields = dict(env_fields or {})
     pol = load_policy(policy, preset=preset, **overrides)
     params = getattr(pol, "params", None)
-    if params is not None and "horizon" not in fields:
-        # The sensing radius must cover the controller's neighbour radius.
-        fields["horizon"] = max(params.horizon, ObservationConfig().horizon)
-    env = BoidsEnv(render_mode="rgb_array" if video else None, **fields)
+    env = BoidsEnv(render_mode="rgb_array" if video else None,
+                   **env_fields_for(pol, env_fields))
     result = run_episode(env, pol, seed, record=True, frame_every=frame_every if video else 0)
     if not quiet:
         print(f"policy {policy} · preset {preset} · robots {env.config.scenario.robots} · "

@@ -10,6 +10,7 @@ table, one row per (policy, case, seed), is written to ``results.parquet`` and
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -71,9 +72,8 @@ _POLICY_CACHE: dict[tuple[str, str, str], Any] = {}
 
 def run_task(task: Task) -> dict[str, Any]:
     """Runs one episode (in a worker) and returns its metrics row (without case columns)."""
-    from boids_env.config import ObservationConfig
     from boids_env.env import BoidsEnv
-    from eval.episode import run_episode
+    from eval.episode import env_fields_for, run_episode
     from policies.registry import load_policy
 
     cache_key = (task.policy.spec, task.policy.preset, json.dumps(task.case.policy,
@@ -82,11 +82,7 @@ def run_task(task: Task) -> dict[str, Any]:
     if policy is None:
         policy = load_policy(task.policy.spec, preset=task.policy.preset, **task.case.policy)
         _POLICY_CACHE[cache_key] = policy
-    fields = {**getattr(policy, "env_fields", {}), **task.case.env}
-    params = getattr(policy, "params", None)
-    if params is not None and "horizon" not in fields:
-        fields["horizon"] = max(params.horizon, ObservationConfig().horizon)
-    env = BoidsEnv(**fields)
+    env = BoidsEnv(**env_fields_for(policy, task.case.env))
     try:
         result = run_episode(env, policy, task.seed, record=True)
     finally:
@@ -102,10 +98,11 @@ def run_task(task: Task) -> dict[str, Any]:
     return metrics
 
 
-def _safe_run(task: Task) -> tuple[bool, dict[str, Any]]:
+def _safe_run(task: Task, run: Callable[[Task], dict[str, Any]] = run_task
+              ) -> tuple[bool, dict[str, Any]]:
     try:
-        return True, run_task(task)
-    except Exception as exc:
+        return True, run(task)
+    except Exception as exc:  # reported; the other episodes go on
         return False, {"key": task.key, "error": f"{type(exc).__name__}: {exc}",
                        "traceback": traceback.format_exc()}
 
@@ -198,19 +195,12 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
 
 def _execute(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]], workers: int,
              backend: str) -> Iterable[tuple[bool, dict[str, Any]]]:
-    def safe(task: Task) -> tuple[bool, dict[str, Any]]:
-        if run is run_task:
-            return _safe_run(task)
-        try:
-            return True, run(task)
-        except Exception as exc:
-            return False, {"key": task.key, "error": f"{type(exc).__name__}: {exc}"}
-
     if not tasks:
         return
     if backend == "ray":
         yield from _execute_ray(tasks)
         return
+    safe = functools.partial(_safe_run, run=run)
     if workers == 1 or len(tasks) == 1:
         for task in tasks:
             yield safe(task)
@@ -219,15 +209,13 @@ def _execute(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]], worke
 
     ctx = mp.get_context("forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn")
     with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=ctx) as pool:
-        fn = _safe_run if run is run_task else run
-        pending = {pool.submit(fn, t): t for t in tasks}
+        pending = {pool.submit(safe, t): t for t in tasks}
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for fut in finished:
                 task = pending.pop(fut)
                 try:
-                    value = fut.result()
-                    yield value if fn is _safe_run else (True, value)
+                    yield fut.result()
                 except Exception as exc:
                     yield False, {"key": task.key, "error": f"{type(exc).__name__}: {exc}"}
 

@@ -48,6 +48,11 @@ def test_model_zip_carries_metadata_and_loads_as_a_policy(tmp_path):
     assert np.array_equal(actions, policy.act_batch(obs))  # deterministic
     with pytest.raises(ValueError, match="observations of size 26"):
         policy.act_batch(np.zeros((3, 96), np.float32))
+    # boids run / boids eval build the env the model needs (4 neighbour slots, not 18)
+    from eval.run import run
+
+    result = run(str(path), out=None, env_fields={"robots": 5, "max_cycles": 10}, quiet=True)
+    assert result.metrics["steps"] == 10
 
 
 def test_resume_continues_to_the_total(tmp_path):
