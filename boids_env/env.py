@@ -147,9 +147,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._finish_step: int | None = None
         self._history: list[npt.NDArray[np.float64]] = []
         self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)
-        mc = episode.metrics
-        self._reward_scale = np.array([-mc.reward_separation, -mc.reward_cohesion,
-                                       -mc.reward_alignment])[:, None] * wc.dt
+        self._reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
         self.agents = list(self.possible_agents)
         self.overlays = {}
         obs = self._observe()
@@ -196,7 +194,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded)
         stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])  # (3, F)
         self._counts += stacked
-        terms = self._reward_scale * stacked  # as metrics.reward_terms, in one array
+        terms = self._reward_scale * stacked  # metrics.reward_terms, as one (3, F) array
         if self._finish_step is None and leader.finished:
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
@@ -320,6 +318,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             from boids_env.render import Renderer
 
             self._renderer = Renderer(self.render_mode, self.config.world.arena_half_size)
+            self._renderer.fps = self.metadata["render_fps"]
         return self._renderer.draw(self)
 
     def close(self) -> None:

@@ -78,12 +78,18 @@ def flags_for(config: MetricsConfig, positions: FloatArray, commanded: FloatArra
                            wrap_alignment=config.wrap_alignment)
 
 
+def reward_scale(config: MetricsConfig, dt: float) -> FloatArray:
+    """−weight · dt per violation, in VIOLATIONS order, shaped (3, 1) to scale stacked flags."""
+    weights = np.array([config.reward_separation, config.reward_cohesion,
+                        config.reward_alignment])
+    return (-weights * dt)[:, None]
+
+
 def reward_terms(flags: dict[str, BoolArray], config: MetricsConfig, dt: float
                  ) -> dict[str, FloatArray]:
     """Per-follower reward terms −weight · flag · dt (DESIGN section 4)."""
-    weights = {"separation": config.reward_separation, "cohesion": config.reward_cohesion,
-               "alignment": config.reward_alignment}
-    return {name: -weights[name] * dt * flags[name].astype(float) for name in VIOLATIONS}
+    scale = reward_scale(config, dt)[:, 0]
+    return {name: scale[i] * flags[name].astype(float) for i, name in enumerate(VIOLATIONS)}
 
 
 def episode_violations(flags: dict[str, BoolArray]) -> dict[str, float]:

@@ -44,8 +44,9 @@ class PolicySpec:
         base = Path(self.spec).stem if self.spec.endswith(".zip") else self.spec
         return f"{base}[{self.preset}]" if self.spec == "reynolds" else base
 
+    @functools.cached_property
     def fingerprint(self) -> str:
-        """Changes when the policy does (a model file's content is hashed)."""
+        """Changes when the policy does (a model file's content is hashed, once)."""
         if self.spec.endswith(".zip") and Path(self.spec).is_file():
             digest = hashlib.sha256(Path(self.spec).read_bytes()).hexdigest()[:16]
             return f"{self.spec}#{digest}"
@@ -63,7 +64,7 @@ class Task:
 
     @property
     def key(self) -> str:
-        raw = json.dumps([self.policy.fingerprint(), self.case.config_key, self.seed])
+        raw = json.dumps([self.policy.fingerprint, self.case.config_key, self.seed])
         return hashlib.sha256(raw.encode()).hexdigest()[:20]
 
 
