@@ -1,4 +1,4 @@
-"""Throughput benchmark: ``python -m bench [--quick] [--out bench/results.json]``.
+"""Throughput benchmark: ``python -m boids_env.bench [--quick] [--out runs/bench/results.json]``.
 
 Measures, after a warm-up, over several repeats (median and spread):
 env-steps/s and agent-steps/s of BoidsEnv with random actions and with the Reynolds policy in
@@ -20,9 +20,10 @@ from typing import Any
 import numpy as np
 
 from boids_env import EnvConfig, ScenarioConfig, parallel_env
-from boids_env.scenario import initial_positions, layout_extent
+from boids_env.config import layout_extent
+from boids_env.policies import ReynoldsPolicy
+from boids_env.scenario import initial_positions
 from boids_env.world import World
-from policies import ReynoldsPolicy
 
 
 def arena_for(robots: int) -> float:
@@ -102,8 +103,8 @@ def paper_suite_seconds() -> float | None:
     import time
 
     try:
-        from eval.runner import PolicySpec, run_suite
-        from eval.suites import PAPER
+        from boids_env.eval.runner import PolicySpec, run_suite
+        from boids_env.eval.suites import PAPER
     except ImportError:
         return None
     with tempfile.TemporaryDirectory() as tmp:
@@ -113,9 +114,10 @@ def paper_suite_seconds() -> float | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m boids_env.bench", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer sizes and repeats")
-    parser.add_argument("--out", default="bench/results.json")
+    parser.add_argument("--out", default="runs/bench/results.json",
+                        help="JSON output (runs/bench/results.json)")
     args = parser.parse_args(argv)
     repeats = 3 if args.quick else 5
     sizes = [13, 19] if args.quick else [7, 13, 19, 100, 1000]

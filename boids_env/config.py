@@ -1,7 +1,7 @@
 """Frozen, validated configuration of the environment and of the Reynolds controller.
 
 Every default is a number from the study (Akgun, "Development of Leader Following, Boids Inspired
-Algorithm Using ROS") unless its docstring says otherwise; ``../shared/DESIGN.md`` lists them.
+Algorithm Using ROS") unless its docstring says otherwise; the README lists them.
 Bad values raise ``ValueError`` naming the field, the value and the allowed range.
 """
 
@@ -13,6 +13,10 @@ import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
+
+import numpy as np
+
+from boids_env.layout import follower_cells
 
 PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "external")
 """Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
@@ -248,9 +252,7 @@ class EnvConfig:
             if not isinstance(getattr(self, name), cls):
                 raise TypeError(f"{name} must be a {cls.__name__}, got "
                                 f"{type(getattr(self, name)).__name__}")
-        from boids_env.scenario import check_fits
-
-        check_fits(self)
+        _check_fits(self)
 
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
@@ -288,6 +290,38 @@ class EnvConfig:
         if "waypoints" in flat:
             flat["waypoints"] = tuple(tuple(p) for p in flat["waypoints"])
         return cls.from_kwargs(**flat)
+
+
+def layout_extent(scenario: ScenarioConfig) -> float:
+    """Largest |coordinate| (m) an initial position can take, jitter included."""
+    cells = follower_cells(scenario.robots, scenario.layout_spacing)
+    return float(np.abs(cells).max(initial=0.0)) + scenario.init_jitter
+
+
+def path_extent(scenario: ScenarioConfig) -> float:
+    """Largest |coordinate| (m) the leader's path reaches (0 for an external leader)."""
+    if scenario.path == "waypoints":
+        return float(np.abs(np.array(scenario.waypoints)).max())
+    if scenario.path == "external":
+        return 0.0
+    return scenario.path_size
+
+
+def _check_fits(config: EnvConfig) -> None:
+    """Raises ``ValueError`` if the initial layout or the leader path leaves the arena."""
+    half = config.world.arena_half_size
+    room = half - config.world.robot_radius
+    need = layout_extent(config.scenario)
+    if need >= room:
+        raise ValueError(
+            f"arena_half_size must exceed {need + config.world.robot_radius:.2f} m to hold the "
+            f"initial grid of robots={config.scenario.robots}, got {half}")
+    reach = path_extent(config.scenario)
+    if reach + config.scenario.arrival_margin >= room:
+        raise ValueError(
+            f"the leader path '{config.scenario.path}' reaches {reach:.2f} m: path_size / "
+            f"waypoints must stay below {room - config.scenario.arrival_margin:.2f} m for "
+            f"arena_half_size={half}")
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from boids_env import metrics
 from boids_env.config import EnvConfig
 
 if TYPE_CHECKING:
-    from boids_env.env import BoidsEnv
+    from boids_env.environment import BoidsEnv
 
 FloatArray = npt.NDArray[np.float64]
 COLUMNS = ("step", "time", "robot", "x", "y", "vx", "vy", "cmd_vx", "cmd_vy")

@@ -7,7 +7,8 @@ surface; ``human`` opens a window (set ``SDL_VIDEODRIVER=dummy`` where there is 
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -17,9 +18,6 @@ try:
     import pygame
 except ImportError as exc:  # pragma: no cover - depends on the install
     raise ImportError("rendering needs pygame-ce: pip install 'boids-env[render]'") from exc
-
-if TYPE_CHECKING:
-    from boids_env.env import BoidsEnv
 
 SIZE = 640
 """Side of the arena drawing (px); the HUD strip sits below it."""
@@ -42,8 +40,28 @@ ARROW_MAX = 0.4
 """Longest arrow drawn (m), so that the raw leader vector does not cover the arena."""
 
 
+@dataclass(frozen=True)
+class Scene:
+    """What one frame shows, as plain data (the env builds it; this module knows no env)."""
+
+    positions: npt.NDArray[np.float64]
+    """(N, 2) robot positions (m), the leader first."""
+    steps: int
+    """Control steps since reset (a smaller number than the last frame's clears the trail)."""
+    robot_radius: float
+    """Robot radius (m)."""
+    status: str = ""
+    """The HUD line under the arena (time, V_*)."""
+    horizon: float = 1.0
+    """Neighbour radius (m), drawn around followers when the renderer shows horizons."""
+    overlays: dict[str, npt.NDArray[np.float64]] = field(default_factory=dict)
+    """Per-follower vectors (F, 2) drawn as arrows, by rule name."""
+    hud_lines: tuple[str, ...] = ()
+    """Extra text lines (e.g. the live window's controls)."""
+
+
 class Renderer:
-    """Draws a :class:`~boids_env.env.BoidsEnv`; one per env, created on first render."""
+    """Draws :class:`Scene` frames of one env; created by the env on its first render."""
 
     def __init__(self, mode: str, arena_half_size: float, *, show_horizon: bool = False,
                  trail_length: int = 2000) -> None:
@@ -74,33 +92,32 @@ class Renderer:
         px[..., 1] = np.rint(SIZE / 2 - points[..., 1] * self.scale)
         return px
 
-    def draw(self, env: BoidsEnv) -> npt.NDArray[np.uint8] | None:
-        """Draws the env's current state; returns an (H, W, 3) image in ``rgb_array`` mode."""
-        world = env._require_world()
+    def draw(self, scene: Scene) -> npt.NDArray[np.uint8] | None:
+        """Draws one frame; returns an (H, W, 3) image in ``rgb_array`` mode."""
         canvas = self._canvas
         canvas.fill(BACKGROUND)
         corner = self.to_px(np.array([-self.half, self.half]))
         side = round(2 * self.half * self.scale)
         pygame.draw.rect(canvas, WALL, (int(corner[0]), int(corner[1]), side, side), 2)
-        pos = self.to_px(world.positions)
-        if world.steps < self._last_steps or world.steps == 0:
+        pos = self.to_px(scene.positions)
+        if scene.steps < self._last_steps or scene.steps == 0:
             self._trail = []
-        if world.steps != self._last_steps:
+        if scene.steps != self._last_steps:
             self._trail.append((int(pos[0, 0]), int(pos[0, 1])))
             self._trail = self._trail[-self.trail_length:]
-        self._last_steps = world.steps
+        self._last_steps = scene.steps
         if len(self._trail) > 1:
             pygame.draw.lines(canvas, TRAIL, False, self._trail, 2)
         if self.show_horizon:
-            r = int(env.episode_config.observation.horizon * self.scale)
+            r = int(scene.horizon * self.scale)
             for x, y in pos[1:]:
                 pygame.draw.circle(canvas, HORIZON, (int(x), int(y)), r, 1)
-        radius = max(3, round(env.config.world.robot_radius * self.scale))
+        radius = max(3, round(scene.robot_radius * self.scale))
         for x, y in pos[1:]:
             pygame.draw.circle(canvas, FOLLOWER, (int(x), int(y)), radius)
         pygame.draw.circle(canvas, LEADER, (int(pos[0, 0]), int(pos[0, 1])), radius + 1)
-        self._draw_arrows(canvas, world.positions[1:], env.overlays)
-        self._draw_hud(canvas, env)
+        self._draw_arrows(canvas, scene.positions[1:], scene.overlays)
+        self._draw_hud(canvas, scene)
         if self.mode == "human":
             self._window.blit(canvas, (0, 0))
             pygame.event.pump()
@@ -123,13 +140,10 @@ class Renderer:
                     pygame.draw.line(canvas, colour, (int(a[0]), int(a[1])),
                                      (int(b[0]), int(b[1])), 2)
 
-    def _draw_hud(self, canvas: Any, env: BoidsEnv) -> None:
-        m = env.episode_metrics()
-        text = (f"t = {m['duration']:5.1f} s   V_sep {m['V_sep']:.3f}   V_coh {m['V_coh']:.3f}"
-                f"   V_align {m['V_align']:.3f}")
+    def _draw_hud(self, canvas: Any, scene: Scene) -> None:
         pygame.draw.rect(canvas, (235, 235, 230), (0, SIZE, SIZE, HUD_HEIGHT))
-        canvas.blit(self._font.render(text, True, (20, 20, 20)), (8, SIZE + 6))
-        for i, line in enumerate(getattr(env, "hud_text", ())):
+        canvas.blit(self._font.render(scene.status, True, (20, 20, 20)), (8, SIZE + 6))
+        for i, line in enumerate(scene.hud_lines):
             canvas.blit(self._font.render(line, True, (60, 60, 60)), (14, 14 + 17 * i))
 
     def close(self) -> None:

@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.env import BoidsEnv
+from boids_env.environment import BoidsEnv
 
 OthersFn = Callable[[Mapping[str, np.ndarray]], dict[str, npt.ArrayLike]]
 

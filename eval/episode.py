@@ -10,9 +10,9 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env.config import ObservationConfig
-from boids_env.env import BoidsEnv
+from boids_env.environment import BoidsEnv
+from boids_env.policies.base import Policy
 from boids_env.recording import Recorder, Recording
-from policies.base import Policy
 
 
 @dataclass

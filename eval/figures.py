@@ -14,8 +14,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from boids_env.eval.stats import group_values
 from boids_env.recording import Recording
-from eval.stats import group_values
 
 COLORS = plt.get_cmap("tab10").colors
 

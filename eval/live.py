@@ -113,9 +113,9 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
     parameters) and the last episode's metrics (with the leader's final position)."""
     import pygame
 
-    from boids_env.env import BoidsEnv
-    from eval.episode import env_fields_for
-    from policies.registry import load_policy
+    from boids_env.environment import BoidsEnv
+    from boids_env.eval.episode import env_fields_for
+    from boids_env.policies.registry import load_policy
 
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
     policy = load_policy(policy_spec, preset=preset, **overrides)

@@ -11,10 +11,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from boids_env.eval import figures
+from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, compare, holm
+from boids_env.eval.study import GROUP_OF_RQ, study_groups, study_summary, verdicts
 from boids_env.recording import Recording
-from eval import figures
-from eval.stats import COUNT_METRICS, V_METRICS, analyse, compare, holm
-from eval.study import GROUP_OF_RQ, study_groups, study_summary, verdicts
 
 SUMMARY_METRICS = ("V_sep", "V_coh", "V_align", "V_align_unwrapped", "min_distance",
                    "collisions", "polarization", "mean_leader_distance")

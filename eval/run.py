@@ -6,9 +6,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from boids_env.env import BoidsEnv
-from eval.episode import EpisodeResult, env_fields_for, run_episode
-from policies.registry import load_policy
+from boids_env.environment import BoidsEnv
+from boids_env.eval.episode import EpisodeResult, env_fields_for, run_episode
+from boids_env.policies.registry import load_policy, split_preset
 
 METRIC_ROWS = (("V_sep", "separation violation (study)"), ("V_coh", "cohesion violation (study)"),
                ("V_align", "alignment violation (study)"),
@@ -37,13 +37,15 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, seed: int = 
     (and ``episode.gif`` with ``video``, ``episode.bag`` with ``bag``, the ROS 2 MCAP bag
     folder ``episode_mcap`` with ``mcap``) to ``out``."""
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
+    policy, preset = split_preset(policy, preset)
     pol = load_policy(policy, preset=preset, **overrides)
     params = getattr(pol, "params", None)
     env = BoidsEnv(render_mode="rgb_array" if video else None,
                    **env_fields_for(pol, env_fields))
     result = run_episode(env, pol, seed, record=True, frame_every=frame_every if video else 0)
     if not quiet:
-        print(f"policy {policy} · preset {preset} · robots {env.config.scenario.robots} · "
+        name = f"{policy} · preset {preset}" if params is not None else policy
+        print(f"policy {name} · robots {env.config.scenario.robots} · "
               f"leader {env.config.scenario.leader_speed} m/s · seed {seed} · "
               f"{result.wall_time:.2f} s wall")
         print(metrics_table(result.metrics))
@@ -51,11 +53,12 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, seed: int = 
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         (out / "metrics.json").write_text(json.dumps(result.metrics, indent=2))
-        config = {"env": env.config.to_dict(), "policy": policy, "preset": preset,
+        shown_preset = preset if params is not None else None
+        config = {"env": env.config.to_dict(), "policy": policy, "preset": shown_preset,
                   "policy_params": vars(params) if params is not None else None, "seed": seed}
         (out / "config.json").write_text(json.dumps(config, indent=2))
         assert result.recording is not None
-        result.recording.extra.update(policy=policy, preset=preset)
+        result.recording.extra.update(policy=policy, preset=shown_preset)
         result.recording.to_parquet(out / "trajectory.parquet")
         if video:
             import imageio.v3 as iio

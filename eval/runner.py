@@ -23,7 +23,7 @@ from typing import Any
 
 import pandas as pd
 
-from eval.suites import Case, Suite
+from boids_env.eval.suites import Case, Suite
 
 EPISODES = "episodes.jsonl"
 ERRORS = "errors.jsonl"
@@ -34,10 +34,18 @@ COUNT_COLUMNS = ("count_sep", "count_coh", "count_align", "count_align_unwrapped
 
 @dataclass(frozen=True)
 class PolicySpec:
-    """A policy to evaluate: a spec for :func:`policies.registry.load_policy` and a preset."""
+    """A policy to evaluate: a spec for :func:`~boids_env.policies.registry.load_policy` and
+    a preset."""
 
     spec: str
     preset: str = "paper"
+
+    @classmethod
+    def parse(cls, spec: str, preset: str = "paper") -> PolicySpec:
+        """``reynolds@boids_ros`` or any spec of ``load_policy`` with a default preset."""
+        from boids_env.policies.registry import split_preset
+
+        return cls(*split_preset(spec, preset))
 
     @property
     def label(self) -> str:
@@ -73,9 +81,9 @@ _POLICY_CACHE: dict[tuple[str, str, str], Any] = {}
 
 def run_task(task: Task) -> dict[str, Any]:
     """Runs one episode (in a worker) and returns its metrics row (without case columns)."""
-    from boids_env.env import BoidsEnv
-    from eval.episode import env_fields_for, run_episode
-    from policies.registry import load_policy
+    from boids_env.environment import BoidsEnv
+    from boids_env.eval.episode import env_fields_for, run_episode
+    from boids_env.policies.registry import load_policy
 
     cache_key = (task.policy.spec, task.policy.preset, json.dumps(task.case.policy,
                                                                    sort_keys=True))

@@ -15,9 +15,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from eval.stats import pair_difference
+from boids_env.eval.stats import pair_difference
 
-DATA = resources.files("eval") / "data"
+DATA = resources.files("boids_env.eval") / "data"
 GROUP_OF_RQ = {1: "rq1", 2: "rq2", 3: "rq3"}
 FACTOR_OF_RQ = {1: "leader_speed", 2: "leader_weight", 3: "robots"}
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from policies.base import BatchPolicy
+from boids_env.policies.base import BatchPolicy
 
 
 class RandomPolicy(BatchPolicy):

@@ -1,19 +1,37 @@
-"""Turns a policy spec (``reynolds``, ``random``, ``model.zip``, ``module:object``) into a
-:class:`~policies.base.Policy`."""
+"""Turns a policy spec (``reynolds``, ``reynolds@boids_ros``, ``random``, ``learned``,
+``model.zip``, ``module:object``) into a :class:`~boids_env.policies.base.Policy`."""
 
 from __future__ import annotations
 
 import importlib
+import inspect
 from pathlib import Path
 from typing import Any
 
-from policies.base import Policy
-from policies.random_policy import RandomPolicy
-from policies.reynolds import ReynoldsPolicy
+from boids_env.config import PRESETS
+from boids_env.policies.base import Policy
+from boids_env.policies.random_policy import RandomPolicy
+from boids_env.policies.reynolds import ReynoldsPolicy
 
 BUILTIN = ("reynolds", "random", "learned")
 LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_followers.zip"
 """The shipped PPO follower policy (train/recipes/ppo_followers.toml); needs the train extra."""
+
+
+def split_preset(spec: str, preset: str = "paper") -> tuple[str, str]:
+    """``"reynolds@boids_ros"`` -> ``("reynolds", "boids_ros")``; any other spec keeps
+    ``preset``. A preset on another policy, or an unknown preset, is a ``ValueError``."""
+    if not isinstance(spec, str) or not spec:
+        raise ValueError(f"policy must be a non-empty string, got {spec!r}")
+    name, at, chosen = spec.partition("@")
+    if not at or name.endswith(".zip") or "/" in name:
+        return spec, preset
+    if name != "reynolds":
+        raise ValueError(f"only reynolds takes a @preset (reynolds@{'|'.join(sorted(PRESETS))}),"
+                         f" got {spec!r}")
+    if chosen not in PRESETS:
+        raise ValueError(f"preset must be one of {sorted(PRESETS)}, got {chosen!r} in {spec!r}")
+    return name, chosen
 
 
 def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
@@ -21,13 +39,17 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
     """Builds the policy named by ``spec``.
 
     Args:
-        spec: ``reynolds`` (the study's controller), ``random``, ``learned`` (the shipped PPO
-            followers), a path to a saved SB3 model
-            (``.zip``), or ``module:object`` naming a Policy instance, class or factory.
-        preset: Reynolds parameter preset (``paper`` or ``boids_ros``).
+        spec: ``reynolds`` (the study's controller; ``reynolds@boids_ros`` picks a preset),
+            ``random``, ``learned`` (the shipped PPO followers), a path to a saved SB3 model
+            (``.zip``), or ``module:object`` naming a Policy instance, a Policy class (built
+            with no arguments) or a factory returning a Policy.
+        preset: Reynolds parameter preset (``paper`` or ``boids_ros``) unless ``spec`` names
+            one.
         max_speed: the random policy's speed range (m/s).
-        reynolds_overrides: Reynolds parameters (e.g. ``leader_weight=1.1``).
+        reynolds_overrides: Reynolds parameters (e.g. ``leader_weight=1.1``); other policies
+            ignore them.
     """
+    spec, preset = split_preset(spec, preset)
     if spec == "reynolds":
         return ReynoldsPolicy(preset, **reynolds_overrides)
     if spec == "random":
@@ -38,7 +60,7 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         if not Path(spec).is_file():
             raise FileNotFoundError(f"policy model file not found: {spec}")
         try:
-            from policies.sb3_policy import SB3Policy
+            from boids_env.policies.sb3_policy import SB3Policy
         except ImportError as exc:
             raise ImportError("loading an SB3 model needs: pip install 'boids-env[train]'"
                               ) from exc
@@ -49,9 +71,24 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
             obj = getattr(importlib.import_module(module_name), attr)
         except (ImportError, AttributeError) as exc:
             raise ValueError(f"cannot import policy {spec!r}: {exc}") from exc
-        policy = obj() if callable(obj) and not isinstance(obj, Policy) else obj
-        if not isinstance(policy, Policy):
+        # A class passes isinstance(.., Policy) (its methods are attributes), so classes and
+        # factories are told apart from instances explicitly.
+        if inspect.isclass(obj) or (callable(obj) and not _is_policy(obj)):
+            try:
+                policy = obj()
+            except TypeError as exc:
+                raise TypeError(f"cannot build policy {spec!r} without arguments: {exc}"
+                                ) from exc
+        else:
+            policy = obj
+        if not _is_policy(policy):
             raise TypeError(f"{spec!r} is not a Policy (needs reset(seed) and act(obs))")
         return policy
-    raise ValueError(f"policy must be one of {BUILTIN}, a .zip SB3 model or module:object, "
-                     f"got {spec!r}")
+    raise ValueError(f"policy must be one of {BUILTIN}, reynolds@PRESET, a .zip SB3 model or "
+                     f"module:object, got {spec!r}")
+
+
+def _is_policy(obj: Any) -> bool:
+    """An instance (not a class) with callable ``reset`` and ``act``."""
+    return (not inspect.isclass(obj) and callable(getattr(obj, "reset", None))
+            and callable(getattr(obj, "act", None)))

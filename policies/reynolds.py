@@ -22,7 +22,7 @@ import numpy.typing as npt
 
 from boids_env.config import ReynoldsParams, reynolds_params
 from boids_env.observations import ObservationLayout
-from policies.base import BatchPolicy
+from boids_env.policies.base import BatchPolicy
 
 FloatArray = npt.NDArray[np.float64]
 RULES = ("separation", "cohesion", "alignment", "leader")

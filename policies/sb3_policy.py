@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from policies.base import BatchPolicy
+from boids_env.policies.base import BatchPolicy
 
 META_ENTRY = "boids.json"
 ALGORITHMS = ("ppo", "sac", "td3", "a2c", "ddpg")

@@ -10,10 +10,10 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
-from boids_env.env import BoidsEnv
-from eval.episode import run_episode
-from policies.sb3_policy import SB3Policy, write_meta
-from train.vec_env import EPISODE_INFO
+from boids_env.environment import BoidsEnv
+from boids_env.eval.episode import run_episode
+from boids_env.policies.sb3_policy import SB3Policy, write_meta
+from boids_env.train.vec_env import EPISODE_INFO
 
 V_KEYS = ("V_sep", "V_coh", "V_align")
 

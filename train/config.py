@@ -10,6 +10,23 @@ from typing import Any
 from boids_env.config import FIELD_OWNER, PATHS, check_integer, check_number
 
 ALGORITHMS = ("ppo", "sac")
+RECIPES = Path(__file__).parent / "recipes"
+"""The shipped training recipes (``boids train --config ppo_followers``)."""
+
+
+def resolve_recipe(spec: str | Path) -> Path:
+    """A TOML file path as given, or the shipped recipe of that name (``ppo_followers`` or
+    ``ppo_followers.toml``); ``FileNotFoundError`` naming both otherwise."""
+    path = Path(spec)
+    if path.is_file():
+        return path
+    name = path.name if path.suffix == ".toml" else f"{path.name}.toml"
+    shipped = RECIPES / name
+    if shipped.is_file():
+        return shipped
+    known = sorted(p.stem for p in RECIPES.glob("*.toml"))
+    raise FileNotFoundError(f"training config not found: {spec} (not a file, and not a shipped "
+                            f"recipe: {known})")
 
 
 @dataclass(frozen=True)

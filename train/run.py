@@ -15,10 +15,10 @@ from typing import Any
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.vec_env import VecMonitor
 
-from policies.sb3_policy import algorithm_class, read_meta, write_meta
-from train.callbacks import Checkpoints, FlockEvalCallback, TrainingMetricsCallback
-from train.config import TrainConfig
-from train.vec_env import CopySpec, FlockVecEnv
+from boids_env.policies.sb3_policy import algorithm_class, read_meta, write_meta
+from boids_env.train.callbacks import Checkpoints, FlockEvalCallback, TrainingMetricsCallback
+from boids_env.train.config import TrainConfig
+from boids_env.train.vec_env import CopySpec, FlockVecEnv
 
 
 def make_vec_env(config: TrainConfig) -> FlockVecEnv:
@@ -33,6 +33,13 @@ def model_meta(config: TrainConfig) -> dict[str, Any]:
     """The ``boids.json`` entry written into every model zip of the run."""
     return {"algorithm": config.algorithm, "env_fields": dict(config.env_fields),
             "train_config": config.to_dict()}
+
+
+def whole_rollouts(config: TrainConfig, slots: int, remaining: int) -> int:
+    """``remaining`` follower-steps rounded up to what the algorithm really runs: PPO collects
+    whole rollouts of ``n_steps`` × slots, SAC ``train_freq`` × slots per update."""
+    chunk = slots * (config.n_steps if config.algorithm == "ppo" else config.train_freq)
+    return -(-remaining // chunk) * chunk
 
 
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
@@ -83,7 +90,11 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
             callbacks.append(Checkpoints(config.checkpoint_every // venv.num_envs,
                                          out / "checkpoints", meta))
         if remaining > 0:
-            model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress_bar,
+            rounded = whole_rollouts(config, venv.num_envs, remaining)
+            if rounded != remaining:
+                print(f"boids train: {remaining:,} follower-steps round up to {rounded:,} "
+                      f"(whole rollouts of {venv.num_envs} follower slots)")
+            model.learn(rounded, callback=CallbackList(callbacks), progress_bar=progress_bar,
                         reset_num_timesteps=resume is None, tb_log_name="run")
         save(out / "model.zip")
     finally:

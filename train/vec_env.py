@@ -25,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
-from boids_env.env import BoidsEnv
+from boids_env.environment import BoidsEnv
 
 EPISODE_INFO = "flock_episode"
 """Info key, on the first slot of a copy whose episode just ended: that episode's V_*,

@@ -16,8 +16,9 @@ def test_boids_run_writes_every_file(tmp_path):
     out = tmp_path / "run"
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
     proc = subprocess.run(
-        [sys.executable, "-m", "boids_env.cli", "run", "--robots", "7", "--leader-speed", "0.6",
-         "--max-cycles", "40", "--seed", "3", "--video", "--bag", "--mcap", "--out", str(out)],
+        [sys.executable, "-m", "boids_env.train.cli", "run", "--robots", "7",
+         "--leader-speed", "0.6", "--max-cycles", "40", "--seed", "3", "--video", "--bag",
+         "--mcap", "--out", str(out)],
         capture_output=True, text=True, env=env, timeout=300, check=False)
     assert proc.returncode == 0, proc.stderr
     assert "V_sep" in proc.stdout and "V_align" in proc.stdout
@@ -40,7 +41,7 @@ def test_boids_run_writes_every_file(tmp_path):
 
 
 def test_boids_run_bad_argument_is_a_clear_error(tmp_path, capsys):
-    from boids_env.cli import main
+    from boids_env.train.cli import main
 
     assert main(["run", "--leader-speed", "-1", "--out", str(tmp_path)]) == 2
     assert "leader_speed must be in" in capsys.readouterr().err

@@ -74,7 +74,7 @@ def test_snapshot_shapes_leader_first():
 def test_a_flock_of_1000_runs_renders_and_stays_physical():
     """Scale: N = 1000 in a ±14 m arena with the Reynolds policy in the loop."""
     from boids_env.metrics import pairwise_min_distance
-    from policies import ReynoldsPolicy
+    from boids_env.policies import ReynoldsPolicy
 
     e = parallel_env(robots=1000, arena_half_size=14.0, render_mode="rgb_array")
     policy = ReynoldsPolicy()

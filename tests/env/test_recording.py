@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from boids_env import parallel_env
+from boids_env.eval.episode import run_episode
+from boids_env.policies import ReynoldsPolicy
 from boids_env.recording import Recording
-from eval.episode import run_episode
-from policies import ReynoldsPolicy
 
 
 def test_parquet_round_trip_reproduces_metrics(tmp_path):

@@ -6,7 +6,7 @@ import sys
 import pandas as pd
 import pytest
 
-from boids_env.cli import main
+from boids_env.train.cli import main
 
 
 @pytest.mark.slow
@@ -16,7 +16,7 @@ def test_boids_eval_writes_every_file_and_report_rebuilds(tmp_path):
                      '[[factor]]\nname = "leader_speed"\nlevels = [0.5, 0.6]\n')
     out = tmp_path / "out"
     proc = subprocess.run(
-        [sys.executable, "-m", "boids_env.cli", "eval", "--policy", "reynolds",
+        [sys.executable, "-m", "boids_env.train.cli", "eval", "--policy", "reynolds",
          "--policy", "random", "--suite", str(suite), "--workers", "2", "--out", str(out),
          "--no-progress"], capture_output=True, text=True, timeout=600, check=False)
     assert proc.returncode == 0, proc.stderr

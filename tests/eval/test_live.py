@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from boids_env.config import reynolds_params
-from eval.live import LiveControls, run_live
+from boids_env.eval.live import LiveControls, run_live
 
 
 def test_arrows_drive_the_leader_at_its_speed():

@@ -5,8 +5,8 @@ import json
 import pandas as pd
 import pytest
 
-from eval.runner import EPISODES, ERRORS, PolicySpec, read_jsonl, run_suite, run_task
-from eval.suites import suite_from_dict
+from boids_env.eval.runner import EPISODES, ERRORS, PolicySpec, read_jsonl, run_suite, run_task
+from boids_env.eval.suites import suite_from_dict
 
 TINY = {"name": "tiny", "seeds": 2, "defaults": {"robots": 7, "max_cycles": 40},
         "factor": [{"name": "leader_speed", "levels": [0.5, 0.6]}]}

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from eval.stats import bootstrap_ci, compare, holm, one_way, pair_difference, tukey
-from eval.study import study_groups, study_summary, study_tukey
+from boids_env.eval.stats import bootstrap_ci, compare, holm, one_way, pair_difference, tukey
+from boids_env.eval.study import study_groups, study_summary, study_tukey
 
 
 def test_one_way_matches_hand_computation():

@@ -3,8 +3,8 @@
 import pytest
 
 from boids_env.config import reynolds_params
-from boids_env.env import BoidsEnv
-from eval.suites import PAPER, ROBUSTNESS, load_suite
+from boids_env.environment import BoidsEnv
+from boids_env.eval.suites import PAPER, ROBUSTNESS, load_suite
 
 
 def test_paper_suite_is_table_iii():

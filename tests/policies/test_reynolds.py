@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from boids_env import parallel_env, reynolds_params
+from boids_env.eval.episode import run_episode
 from boids_env.observations import ObservationLayout, build_observations
-from eval.episode import run_episode
-from policies import ReynoldsPolicy
+from boids_env.policies import ReynoldsPolicy
 
 
 def clip(x, limit):

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from policies.registry import load_policy
-from policies.sb3_policy import SB3Policy, read_meta
-from train.config import TrainConfig
-from train.run import train
+from boids_env.policies.registry import load_policy
+from boids_env.policies.sb3_policy import SB3Policy, read_meta
+from boids_env.train.config import TrainConfig
+from boids_env.train.run import train
 
 TINY = {"total_timesteps": 1200, "group_sizes": (4, 5), "copies": 2, "n_steps": 80,
         "batch_size": 140, "n_epochs": 2, "eval_every": 0, "checkpoint_every": 0,
@@ -49,7 +49,7 @@ def test_model_zip_carries_metadata_and_loads_as_a_policy(tmp_path):
     with pytest.raises(ValueError, match="observations of size 26"):
         policy.act_batch(np.zeros((3, 96), np.float32))
     # boids run / boids eval build the env the model needs (4 neighbour slots, not 18)
-    from eval.run import run
+    from boids_env.eval.run import run
 
     result = run(str(path), out=None, env_fields={"robots": 5, "max_cycles": 10}, quiet=True)
     assert result.metrics["steps"] == 10
@@ -118,14 +118,17 @@ def test_unreadable_model_files_are_clear_errors(tmp_path):
 def test_boids_train_then_boids_run(tmp_path):
     out = tmp_path / "t"
     proc = subprocess.run(
-        [sys.executable, "-m", "boids_env.cli", "train", "--timesteps", "1000",
+        [sys.executable, "-m", "boids_env.train.cli", "train", "--timesteps", "1000",
          "--group-sizes", "5", "--copies", "1", "--eval-every", "0", "--checkpoint-every", "0",
          "--no-progress", "--out", str(out)], capture_output=True, text=True, timeout=600,
         check=False)
     assert proc.returncode == 0, proc.stderr
     assert (out / "model.zip").is_file() and (out / "config.json").is_file()
+    # PPO runs whole rollouts: the command says so, and names only what it wrote
+    assert "round up to" in proc.stdout
+    assert "evaluations.csv" not in proc.stdout and "checkpoints" not in proc.stdout
     run = subprocess.run(
-        [sys.executable, "-m", "boids_env.cli", "run", "--policy", str(out / "model.zip"),
+        [sys.executable, "-m", "boids_env.train.cli", "run", "--policy", str(out / "model.zip"),
          "--robots", "5", "--max-cycles", "30", "--out", str(tmp_path / "r")],
         capture_output=True, text=True, timeout=600, check=False)
     assert run.returncode == 0, run.stderr

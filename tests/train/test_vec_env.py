@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from train.vec_env import EPISODE_INFO, CopySpec, FlockVecEnv
+from boids_env.train.vec_env import EPISODE_INFO, CopySpec, FlockVecEnv
 
 SHORT = {"max_cycles": 25}
 

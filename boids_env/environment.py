@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
-from pettingzoo.utils.conversions import parallel_to_aec
+from pettingzoo.utils.conversions import parallel_to_aec, parallel_to_aec_wrapper
 
 from boids_env import metrics, scenario
 from boids_env.config import EnvConfig, ScenarioConfig
@@ -20,6 +20,8 @@ from boids_env.observations import ObservationLayout, build_observations
 from boids_env.world import Snapshot, World
 
 AgentID = str
+REWARD_INFO_KEYS = ("reward_separation", "reward_cohesion", "reward_alignment")
+"""The per-term rewards every follower's info holds, after reset and after every step."""
 RESET_OPTIONS = tuple(f.name for f in fields(ScenarioConfig) if f.name != "robots")
 """Scenario fields that ``reset(options=...)`` may change for one episode."""
 
@@ -153,7 +155,10 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         obs = self._observe()
         if self.render_mode == "human":
             self.render()
-        return dict(zip(self.agents, obs, strict=True)), {a: {} for a in self.agents}
+        # The same info keys as step()'s, so clients that build their spec from reset
+        # (TorchRL, BenchMARL) keep the reward terms.
+        zero = dict.fromkeys(REWARD_INFO_KEYS, 0.0)
+        return dict(zip(self.agents, obs, strict=True)), {a: dict(zero) for a in self.agents}
 
     def _episode_config(self, options: Mapping[str, Any] | None) -> EnvConfig:
         if options is None:
@@ -263,6 +268,14 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         return obs
 
     # -------------------------------------------------------------------------- queries
+    @property
+    def np_random(self) -> np.random.Generator:
+        """The env's random generator (seeded by ``reset(seed=...)``), as Gymnasium and
+        PettingZoo's own envs expose it (SuperSuit's wrappers read it)."""
+        if self._rng is None:
+            self._rng = np.random.default_rng()
+        return self._rng
+
     def state(self) -> np.ndarray:
         """Global state: positions (N·2) then velocities (N·2), the leader first, float32."""
         world = self._require_world()
@@ -314,12 +327,19 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             return None
         if self._world is None:
             raise RuntimeError("render() called before reset()")
-        if self._renderer is None:
-            from boids_env.render import Renderer
+        from boids_env.render import Renderer, Scene
 
+        if self._renderer is None:
             self._renderer = Renderer(self.render_mode, self.config.world.arena_half_size)
             self._renderer.fps = self.metadata["render_fps"]
-        return self._renderer.draw(self)
+        world = self._world
+        m = self.episode_metrics()
+        status = (f"t = {m['duration']:5.1f} s   V_sep {m['V_sep']:.3f}   V_coh {m['V_coh']:.3f}"
+                  f"   V_align {m['V_align']:.3f}")
+        scene = Scene(world.positions, world.steps, self.episode_config.world.robot_radius,
+                      status, self.episode_config.observation.horizon, dict(self.overlays),
+                      tuple(self.hud_text))
+        return self._renderer.draw(scene)
 
     def close(self) -> None:
         if self._renderer is not None:
@@ -359,9 +379,14 @@ def parallel_env(render_mode: str | None = None, **kwargs: Any) -> BoidsEnv:
     return BoidsEnv(render_mode=render_mode, **kwargs)
 
 
+def raw_env(render_mode: str | None = None, **kwargs: Any) -> Any:
+    """The AEC version of :func:`parallel_env` without PettingZoo's order-enforcing wrapper."""
+    return parallel_to_aec_wrapper(parallel_env(render_mode=render_mode, **kwargs))
+
+
 def env(render_mode: str | None = None, **kwargs: Any) -> Any:
-    """The AEC version (``parallel_to_aec``) of :func:`parallel_env`."""
+    """The AEC version (``parallel_to_aec``: order-enforcing) of :func:`parallel_env`."""
     return parallel_to_aec(parallel_env(render_mode=render_mode, **kwargs))
 
 
-__all__ = ["BoidsEnv", "env", "parallel_env"]
+__all__ = ["REWARD_INFO_KEYS", "BoidsEnv", "env", "parallel_env", "raw_env"]

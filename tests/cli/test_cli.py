@@ -1,0 +1,104 @@
+"""The ``boids`` command's arguments: every spelling of a policy, paths, extras, interrupts."""
+
+import json
+
+import pytest
+
+from boids_env import extras
+from boids_env.train.cli import build_parser, main
+
+SHORT = ["--robots", "5", "--max-cycles", "25"]
+
+
+def test_run_accepts_a_policy_class_by_module_path(tmp_path, capsys):
+    spec = "boids_env.policies.reynolds:ReynoldsPolicy"
+    assert main(["run", "--policy", spec, *SHORT, "--out", str(tmp_path)]) == 0
+    assert json.loads((tmp_path / "metrics.json").read_text())["steps"] == 25
+    assert f"policy {spec} ·" in capsys.readouterr().out
+
+
+def test_run_accepts_a_preset_after_at(tmp_path, capsys):
+    assert main(["run", "--policy", "reynolds@boids_ros", *SHORT, "--out", str(tmp_path)]) == 0
+    config = json.loads((tmp_path / "config.json").read_text())
+    assert config["preset"] == "boids_ros"
+    assert config["policy_params"]["horizon"] == 0.75
+    assert "preset boids_ros" in capsys.readouterr().out
+
+
+def test_run_prints_no_preset_for_a_policy_without_one(tmp_path, capsys):
+    assert main(["run", "--policy", "random", *SHORT, "--out", str(tmp_path)]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith("policy random ·") and "preset" not in first
+    assert json.loads((tmp_path / "config.json").read_text())["preset"] is None
+
+
+def test_run_help_lists_every_builtin_policy():
+    text = build_parser()._subparsers._group_actions[0].choices["run"].format_help()
+    for name in ("reynolds", "boids_ros", "random", "learned", ".zip", "module:object"):
+        assert name in text, name
+
+
+def test_run_drives_a_waypoint_path(tmp_path):
+    assert main(["run", "--path", "waypoints", "--waypoints", "0,1 -1,1", "--robots", "4",
+                 "--out", str(tmp_path)]) == 0
+    config = json.loads((tmp_path / "config.json").read_text())
+    assert config["env"]["scenario"]["waypoints"] == [[0.0, 1.0], [-1.0, 1.0]]
+    # the leader reached its last target: the episode ended on its own, not at a step limit
+    assert json.loads((tmp_path / "metrics.json").read_text())["steps"] < 100
+
+
+def test_waypoint_path_without_waypoints_is_a_clear_error(tmp_path, capsys):
+    assert main(["run", "--path", "waypoints", "--out", str(tmp_path / "o")]) == 2
+    assert "--waypoints" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+    with pytest.raises(SystemExit):
+        main(["run", "--path", "waypoints", "--waypoints", "1;x"])
+
+
+def test_a_missing_extra_is_named_before_any_work(tmp_path, capsys, monkeypatch):
+    real = extras.importlib.util.find_spec
+    monkeypatch.setattr(extras.importlib.util, "find_spec",
+                        lambda name: None if name == "rosbags" else real(name))
+    out = tmp_path / "o"
+    assert main(["run", "--bag", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'boids-env[ros]'" in err and "rosbags" in err
+    assert not out.exists()
+
+
+def test_missing_train_extra_gives_the_torch_hint(monkeypatch):
+    monkeypatch.setattr(extras.importlib.util, "find_spec",
+                        lambda name: None if name == "torch" else object())
+    with pytest.raises(extras.MissingExtraError, match=r"boids-env\[train\].*CPU build"):
+        extras.require("train", purpose="boids train")
+
+
+def test_ctrl_c_is_a_short_message_and_exit_130(tmp_path, capsys, monkeypatch):
+    import boids_env.eval.runner as runner
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "run_suite", interrupted)
+    assert main(["eval", "--out", str(tmp_path)]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "interrupted" in err[0] and str(tmp_path) in err[0]
+
+
+def test_train_config_accepts_a_shipped_recipe_name():
+    from boids_env.train.config import TrainConfig, resolve_recipe
+
+    path = resolve_recipe("ppo_followers")
+    assert path.is_file() and TrainConfig.from_toml(path).algorithm == "ppo"
+    with pytest.raises(FileNotFoundError, match="shipped recipe"):
+        resolve_recipe("no_such_recipe")
+
+
+def test_whole_rollouts_rounds_up_to_what_ppo_runs():
+    from boids_env.train.config import TrainConfig
+    from boids_env.train.run import whole_rollouts
+
+    config = TrainConfig(n_steps=256)
+    assert whole_rollouts(config, 36, 5000) == 256 * 36
+    assert whole_rollouts(config, 36, 256 * 36 * 2) == 256 * 36 * 2
+    assert whole_rollouts(TrainConfig(algorithm="sac", train_freq=1), 36, 50) == 72

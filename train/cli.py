@@ -1,0 +1,86 @@
+"""The ``boids`` command. It lives in the top layer (train -> eval -> policies -> boids_env) so
+no layer imports one above it: ``run``, ``eval`` and ``report`` come from
+:mod:`boids_env.eval.cli`, ``train`` is defined here. Argument parsing only; each command's code
+is imported when it runs, so ``boids run`` works without the train extra."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from boids_env.eval import cli as eval_cli
+from boids_env.extras import require
+
+
+def _train_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("train", help="train followers with Stable-Baselines3 (train extra)",
+                       description="Trains one shared follower policy (PPO by default) on the "
+                       "flock; writes model.zip, config.json, evaluations.csv, checkpoints/ "
+                       "and tb/ (TensorBoard) to --out.")
+    p.add_argument("--config", help="a TOML file of TrainConfig fields, or the name of a "
+                   "shipped recipe (e.g. ppo_followers); flags override it")
+    p.add_argument("--out", default="runs/train", help="output folder (runs/train)")
+    p.add_argument("--algorithm", choices=("ppo", "sac"), default=None)
+    p.add_argument("--timesteps", type=int, default=None, dest="total_timesteps",
+                   help="follower-steps in all (PPO rounds up to whole rollouts)")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--copies", type=int, default=None, help="env copies stepped together")
+    p.add_argument("--processes", type=int, default=None, help="env worker processes")
+    p.add_argument("--group-sizes", type=int, nargs="+", default=None)
+    p.add_argument("--leader-speeds", type=float, nargs="+", default=None)
+    p.add_argument("--eval-every", type=int, default=None, help="timesteps (0: never)")
+    p.add_argument("--checkpoint-every", type=int, default=None, help="timesteps (0: never)")
+    p.add_argument("--resume", default=None, help="checkpoint zip to continue from")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_train)
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from boids_env.train.config import TrainConfig, resolve_recipe
+
+    overrides = {name: getattr(args, name) for name in (
+        "algorithm", "total_timesteps", "seed", "copies", "processes", "eval_every",
+        "checkpoint_every")}
+    overrides["group_sizes"] = tuple(args.group_sizes) if args.group_sizes else None
+    overrides["leader_speeds"] = tuple(args.leader_speeds) if args.leader_speeds else None
+    if args.config:
+        config = TrainConfig.from_toml(resolve_recipe(args.config), **overrides)
+    else:
+        config = TrainConfig().replace(**overrides)
+    require("train", purpose="boids train")
+    from boids_env.train.run import train
+
+    model = train(config, args.out, resume=args.resume, progress_bar=not args.no_progress)
+    written = sorted(p.name + ("/" if p.is_dir() else "") for p in model.parent.iterdir())
+    print(f"wrote {model}; {args.out} holds {', '.join(written)}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="boids", description="boids-env: leader-following "
+                                     "boids flock (Akgun's ROS study) as a PettingZoo env")
+    sub = parser.add_subparsers(dest="command", required=True)
+    eval_cli.add_commands(sub)
+    _train_parser(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Runs the ``boids`` command; returns the exit status (2 for a user error, 130 when
+    interrupted)."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except KeyboardInterrupt:
+        out = getattr(args, "out", None)
+        kept = f"; finished work is kept in {out}" if out else ""
+        print(f"\nboids {args.command}: interrupted{kept}", file=sys.stderr)
+        return 130
+    except (ValueError, TypeError, KeyError, OSError, ImportError) as exc:
+        print(f"boids {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
