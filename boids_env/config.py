@@ -193,6 +193,13 @@ class ObservationConfig:
         _set(self, "obs_noise", _number("obs_noise", self.obs_noise, 0.0, 10.0))
 
 
+REWARDS = ("study", "safe")
+"""Reward presets: ``study`` (the study's three violations only, the default) and ``safe``
+(adds penalties for crowding, contact and walls; see :data:`SAFE_WEIGHTS`)."""
+SAFE_WEIGHTS = {"reward_proximity": 0.5, "reward_contact": 2.0, "reward_wall": 1.0}
+"""Weights of the safety terms under ``reward="safe"`` (per step, × dt, like a violation)."""
+
+
 @dataclass(frozen=True)
 class MetricsConfig:
     """Violation thresholds (all against the leader) and reward weights (DESIGN section 4)."""
@@ -212,6 +219,18 @@ class MetricsConfig:
     """Weight of the cohesion flag in the reward."""
     reward_alignment: float = 1.0
     """Weight of the alignment flag in the reward."""
+    reward: str = "study"
+    """Reward preset, one of REWARDS: ``study`` (the study's metrics only) or ``safe`` (the
+    study's plus the safety terms below at :data:`SAFE_WEIGHTS`)."""
+    reward_proximity: float | None = None
+    """Weight of the penalty while a follower is closer than ``safety_distance`` to another
+    robot (follower or leader); None: the preset's (0 for ``study``)."""
+    reward_contact: float | None = None
+    """Weight of the penalty while a follower touches another robot; None: the preset's."""
+    reward_wall: float | None = None
+    """Weight of the penalty while a follower touches a wall; None: the preset's."""
+    safety_distance: float = 0.3
+    """Centre distance (m) under which ``reward_proximity`` applies. Not in the study."""
 
     def __post_init__(self) -> None:
         _set(self, "separation_threshold",
@@ -226,6 +245,24 @@ class MetricsConfig:
             raise ValueError(f"wrap_alignment must be True or False, got {self.wrap_alignment!r}")
         for name in ("reward_separation", "reward_cohesion", "reward_alignment"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
+        if self.separation_threshold >= self.cohesion_threshold:
+            raise ValueError(f"separation_threshold ({self.separation_threshold} m) must be "
+                             f"below cohesion_threshold ({self.cohesion_threshold} m)")
+        if self.reward not in REWARDS:
+            raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
+        for name in SAFE_WEIGHTS:
+            if getattr(self, name) is not None:
+                _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
+        _set(self, "safety_distance", _number("safety_distance", self.safety_distance, 0.0, 10,
+                                              lo_open=True, unit="m"))
+
+    @property
+    def safety_weights(self) -> tuple[float, float, float]:
+        """Resolved weights of the proximity, contact and wall terms (the preset's where a
+        field is None)."""
+        preset = SAFE_WEIGHTS if self.reward == "safe" else dict.fromkeys(SAFE_WEIGHTS, 0.0)
+        return tuple(preset[name] if getattr(self, name) is None else getattr(self, name)
+                     for name in SAFE_WEIGHTS)  # type: ignore[return-value]
 
 
 _SECTIONS = {"world": WorldConfig, "scenario": ScenarioConfig, "observation": ObservationConfig,

@@ -20,8 +20,10 @@ from boids_env.observations import ObservationLayout, build_observations
 from boids_env.world import Snapshot, World
 
 AgentID = str
-REWARD_INFO_KEYS = ("reward_separation", "reward_cohesion", "reward_alignment")
-"""The per-term rewards every follower's info holds, after reset and after every step."""
+REWARD_INFO_KEYS = ("reward_separation", "reward_cohesion", "reward_alignment",
+                    "reward_proximity", "reward_contact", "reward_wall")
+"""The per-term rewards every follower's info holds, after reset and after every step: the
+study's three, then the safety terms (0 unless ``reward="safe"`` or their weights are set)."""
 RESET_OPTIONS = tuple(f.name for f in fields(ScenarioConfig) if f.name != "robots")
 """Scenario fields that ``reset(options=...)`` may change for one episode."""
 
@@ -56,7 +58,11 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     Per follower and step: −(w_sep·[sep] + w_coh·[coh] + w_ali·[ali]) · dt, the flags of
     :mod:`boids_env.metrics`; each term is in ``infos[agent]`` as ``reward_separation``,
     ``reward_cohesion``, ``reward_alignment``. Summed over followers and the episode, the
-    return is −(V_sep + V_coh + V_align) · T.
+    return is −(V_sep + V_coh + V_align) · T (the default ``reward="study"``).
+    ``reward="safe"`` adds −w·[flag]·dt per follower for ``reward_proximity`` (closer than
+    ``safety_distance``, 0.3 m, to any other robot, the leader included), ``reward_contact``
+    (touching a robot) and ``reward_wall`` (touching a wall); these keys are always in the
+    infos (0 under the study's reward).
 
     ## Starting State
     Leader at (0, 0), followers on the study's 0.5 m grid behind it with a seeded jitter of
@@ -150,6 +156,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._history: list[npt.NDArray[np.float64]] = []
         self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)
         self._reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
+        self._safety_scale = -np.array(episode.metrics.safety_weights)[:, None] * wc.dt
         self.agents = list(self.possible_agents)
         self.overlays = {}
         obs = self._observe()
@@ -204,12 +211,13 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
             self._finish_step is not None and world.steps >= self._finish_step + self._tail_steps)
+        terms = np.vstack([terms, self._safety_terms(world.positions)])  # (6, F)
         agents = self.agents
         obs = self._observe()
         reward = terms.sum(axis=0).tolist()
-        sep, coh, ali = terms.tolist()
-        infos = {a: {"reward_separation": s, "reward_cohesion": c, "reward_alignment": al}
-                 for a, s, c, al in zip(agents, sep, coh, ali, strict=True)}
+        columns = terms.T.tolist()
+        infos = {a: dict(zip(REWARD_INFO_KEYS, col, strict=True))
+                 for a, col in zip(agents, columns, strict=True)}
         out = (dict(zip(agents, obs, strict=True)), dict(zip(agents, reward, strict=True)),
                dict.fromkeys(agents, False), dict.fromkeys(agents, done), infos)
         if done:
@@ -217,6 +225,16 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if self.render_mode == "human":
             self.render()
         return out
+
+    def _safety_terms(self, positions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """The safety reward terms (3, F): −weight · flag · dt, zeros when no weight is set."""
+        scale = self._safety_scale
+        if not scale.any():
+            return np.zeros((3, len(positions) - 1))
+        cfg = self.episode_config
+        flags = metrics.safety_flags(positions, cfg.world.robot_radius,
+                                     cfg.world.arena_half_size, cfg.metrics.safety_distance)
+        return scale * np.stack([flags[name] for name in metrics.SAFETY_FLAGS])
 
     def _parse_actions(self, actions: Mapping[AgentID, npt.ArrayLike]
                        ) -> npt.NDArray[np.float64]:

@@ -45,6 +45,11 @@ class Leader:
         """Time (s) the path takes at ``speed`` from the end of start-up; None if unbounded."""
         return None
 
+    def reference_path(self) -> Vec | None:
+        """The scripted path as a polyline (M, 2) in metres (None: no script, e.g. external),
+        for the leader's path deviation."""
+        return None
+
 
 class WaypointLeader(Leader):
     """Drives to absolute targets in turn at constant speed; a move ends within ``margin``.
@@ -61,7 +66,8 @@ class WaypointLeader(Leader):
         self.margin = margin
         self.axis_aligned = axis_aligned
         self.index = 0
-        previous = np.vstack([np.asarray(start, dtype=float), self.targets[:-1]])
+        self.start = np.asarray(start, dtype=float)
+        previous = np.vstack([self.start, self.targets[:-1]])
         self._axes = np.argmax(np.abs(self.targets - previous), axis=1)
         self._length = float(np.sum(np.linalg.norm(self.targets - previous, axis=1)))
 
@@ -85,6 +91,9 @@ class WaypointLeader(Leader):
     @property
     def nominal_duration(self) -> float:
         return (self._length - len(self.targets) * self.margin) / self.speed
+
+    def reference_path(self) -> Vec:
+        return np.vstack([self.start, self.targets])
 
 
 class CurveLeader(Leader):
@@ -123,6 +132,9 @@ class CurveLeader(Leader):
     @property
     def nominal_duration(self) -> float:
         return float(self._arc[-1]) / self.speed
+
+    def reference_path(self) -> Vec:
+        return self._points.copy()
 
 
 class ExternalLeader(Leader):

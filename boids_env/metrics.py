@@ -9,6 +9,11 @@ section 4). Arrays put robots on the second-to-last axis with the leader first: 
 - alignment violation: the angle between the leader's and follower i's *commanded* velocity
   directions exceeds alignment_threshold_deg (45°); a zero command has direction 0°.
 - V_x = Σ_i (violating samples of i · dt) / T, summed over followers, T = samples · dt.
+
+Safety (beyond the study, which measures only against the leader, so a flock can score well
+while its robots touch all the time): robot–robot and robot–leader contact, wall contact,
+nearest-neighbour spacing and the leader's deviation from its scripted path; see
+:func:`safety_metrics` and, per step, :func:`safety_flags`.
 """
 
 from __future__ import annotations
@@ -27,6 +32,15 @@ FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
 VIOLATIONS = ("separation", "cohesion", "alignment")
+CONTACT_TOLERANCE = 0.001
+"""Two robots (or a robot and a wall) closer than touching + this (m) count as in contact:
+pymunk's collision slop lets rigid contacts overlap by about ``collision_slop``."""
+SAFETY_KEYS = ("touching_fraction", "mean_contact_pairs", "contacts_follower",
+               "contacts_leader", "wall_fraction", "mean_nn_distance",
+               "leader_path_deviation", "leader_path_deviation_max")
+"""The safety metrics of :func:`safety_metrics`, in report order."""
+SAFETY_FLAGS = ("proximity", "contact", "wall")
+"""Per-follower, per-step safety flags (:func:`safety_flags`), in reward order."""
 V_KEYS = {"separation": "V_sep", "cohesion": "V_coh", "alignment": "V_align"}
 COUNT_KEYS = {"separation": "count_sep", "cohesion": "count_coh", "alignment": "count_align"}
 
@@ -141,6 +155,130 @@ def collision_count(positions: FloatArray, radius: float, tolerance: float = 0.0
     return onsets
 
 
+def _pairs_within(positions: FloatArray, distance: float) -> npt.NDArray[np.intp]:
+    """(M, 2) pairs i < j of one sample closer than ``distance``."""
+    pairs = cKDTree(positions).query_pairs(distance, output_type="ndarray")
+    return np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
+
+
+def _pair_stats(pos: FloatArray, touch: float) -> dict[str, float]:
+    """Contact counts, onsets (leader pairs apart), nearest-neighbour mean and the minimum
+    distance of samples (T, N, 2) with N >= 2: all pairs in chunks for small groups, a KD-tree
+    per sample for large ones."""
+    steps, n = pos.shape[:2]
+    stats = {"touching": 0.0, "pairs": 0.0, "onset_leader": 0.0, "onset_follower": 0.0,
+             "nn": 0.0, "min": float("inf")}
+    if n <= 64:
+        iu, ju = np.triu_indices(n, 1)
+        leader_pair = iu == 0
+        before = np.zeros(len(iu), dtype=bool)
+        chunk = max(1, 2_000_000 // (n * n))
+        for start in range(0, steps, chunk):
+            p = pos[start:start + chunk]
+            diff = p[:, :, None, :] - p[:, None, :, :]
+            dist = np.sqrt(np.einsum("tijd,tijd->tij", diff, diff))
+            dist[:, np.arange(n), np.arange(n)] = np.inf
+            stats["nn"] += float(dist.min(axis=2).mean(axis=1).sum())
+            stats["min"] = min(stats["min"], float(dist.min()))
+            touching = dist[:, iu, ju] < touch  # (t, P)
+            onset = touching & ~np.vstack([before[None], touching[:-1]])
+            stats["onset_leader"] += float(onset[:, leader_pair].sum())
+            stats["onset_follower"] += float(onset[:, ~leader_pair].sum())
+            stats["touching"] += float(touching.any(axis=1).sum())
+            stats["pairs"] += float(touching.sum())
+            before = touching[-1]
+        return stats
+    previous: set[tuple[int, int]] = set()
+    for p in pos:
+        tree = cKDTree(p)
+        nearest = tree.query(p, k=2)[0][:, 1]
+        stats["nn"] += float(nearest.mean())
+        stats["min"] = min(stats["min"], float(nearest.min()))
+        now = {(int(i), int(j)) for i, j in tree.query_pairs(touch, output_type="ndarray")}
+        stats["touching"] += bool(now)
+        stats["pairs"] += len(now)
+        for i, _ in now - previous:
+            stats["onset_leader" if i == 0 else "onset_follower"] += 1
+        previous = now
+    return stats
+
+
+def safety_metrics(positions: FloatArray, radius: float, arena_half_size: float,
+                   leader_path: FloatArray | None = None,
+                   tolerance: float = CONTACT_TOLERANCE) -> dict[str, float]:
+    """Safety of an episode's samples (T, N, 2), the leader first.
+
+    Returns:
+        ``touching_fraction``: fraction of samples in which some pair of robots (the leader
+        included) is in contact; ``mean_contact_pairs``: pairs in contact per sample;
+        ``contacts_follower`` / ``contacts_leader``: contact onsets between two followers /
+        between the leader and a follower (a pair that starts touching counts once, a pair
+        touching in the first sample included); ``wall_fraction``: fraction of samples in which
+        some robot touches a wall; ``mean_nn_distance``: centre distance (m) from each robot to
+        its nearest other robot, averaged over robots and samples; ``min_distance``: the
+        smallest centre distance between two robots (m);
+        ``leader_path_deviation`` / ``_max``: the leader's mean / largest distance (m) from its
+        scripted path ``leader_path`` (a polyline (M, 2); NaN when not given).
+    """
+    pos = np.asarray(positions, dtype=float)
+    steps, n = pos.shape[:2]
+    nan = float("nan")
+    out: dict[str, float] = dict.fromkeys(SAFETY_KEYS, nan)
+    out["min_distance"] = nan
+    if steps == 0:
+        return out
+    reach = arena_half_size - radius - tolerance
+    out["wall_fraction"] = float(np.any(np.abs(pos) >= reach, axis=(1, 2)).mean())
+    if n > 1:
+        stats = _pair_stats(pos, 2 * radius + tolerance)
+        out.update(touching_fraction=stats["touching"] / steps,
+                   mean_contact_pairs=stats["pairs"] / steps,
+                   contacts_follower=stats["onset_follower"],
+                   contacts_leader=stats["onset_leader"],
+                   mean_nn_distance=stats["nn"] / steps, min_distance=stats["min"])
+    if leader_path is not None and len(leader_path):
+        dev = path_deviation(pos[:, 0], np.asarray(leader_path, dtype=float))
+        out["leader_path_deviation"] = float(dev.mean())
+        out["leader_path_deviation_max"] = float(dev.max())
+    return out
+
+
+def path_deviation(points: FloatArray, path: FloatArray) -> FloatArray:
+    """Distance (m) from each point (T, 2) to the polyline ``path`` (M, 2): (T,)."""
+    if len(path) == 1:
+        return np.linalg.norm(points - path[0], axis=-1)
+    a, b = path[:-1], path[1:]  # (S, 2) segments
+    ab = b - a
+    length2 = np.einsum("sd,sd->s", ab, ab)
+    best = np.full(len(points), np.inf)
+    for start in range(0, len(a), 512):  # chunks bound the (T, S) temporaries
+        sa, sab, sl = a[start:start + 512], ab[start:start + 512], length2[start:start + 512]
+        rel = points[:, None, :] - sa[None]
+        t = np.clip(np.einsum("tsd,sd->ts", rel, sab) / np.where(sl > 0, sl, 1.0), 0.0, 1.0)
+        closest = sa[None] + t[..., None] * sab[None]
+        d = np.linalg.norm(points[:, None, :] - closest, axis=-1).min(axis=1)
+        best = np.minimum(best, d)
+    return best
+
+
+def safety_flags(positions: FloatArray, radius: float, arena_half_size: float,
+                 safety_distance: float, tolerance: float = CONTACT_TOLERANCE
+                 ) -> dict[str, BoolArray]:
+    """Per-follower safety flags at one instant (N, 2), the leader first: ``proximity``
+    (centre distance to some other robot, the leader included, below ``safety_distance``),
+    ``contact`` (touching some other robot) and ``wall`` (touching a wall); each (N-1,)."""
+    pos = np.asarray(positions, dtype=float)
+    n = len(pos)
+    if n > 1:
+        nearest = cKDTree(pos).query(pos[1:], k=2)[0][:, 1]
+    else:  # pragma: no cover - an env always has a follower
+        nearest = np.zeros(0)
+    reach = arena_half_size - radius - tolerance
+    return {"proximity": nearest < safety_distance,
+            "contact": nearest < 2 * radius + tolerance,
+            "wall": np.any(np.abs(pos[1:]) >= reach, axis=1)}
+
+
 def polarization(velocities: FloatArray) -> FloatArray:
     """|mean unit velocity| of the robots that move: (..., N, 2) -> (...); 0 when none move."""
     speed = np.linalg.norm(velocities, axis=-1, keepdims=True)
@@ -157,7 +295,9 @@ def leader_distance(positions: FloatArray) -> FloatArray:
 
 
 def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: FloatArray,
-                    config: MetricsConfig, dt: float, robot_radius: float) -> dict[str, object]:
+                    config: MetricsConfig, dt: float, robot_radius: float,
+                    arena_half_size: float = 5.0, leader_path: FloatArray | None = None
+                    ) -> dict[str, object]:
     """Everything reported for one episode, from its sampled arrays.
 
     Args:
@@ -166,12 +306,15 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         config: thresholds and flags.
         dt: sampling period (s).
         robot_radius: for contacts (m).
+        arena_half_size: for wall contacts (m).
+        leader_path: the leader's scripted path as a polyline (M, 2), for its deviation.
 
     Returns:
         ``V_sep``, ``V_coh``, ``V_align``, the per-follower ``count_*`` lists,
         ``V_align_unwrapped`` and ``count_align_unwrapped`` (the study's unwrapped rule),
         ``duration`` (T, s), ``steps``, ``min_distance`` (m), ``collisions``,
-        ``polarization`` (episode mean) and ``mean_leader_distance`` (m).
+        ``polarization`` (episode mean), ``mean_leader_distance`` (m), and the safety
+        metrics of :func:`safety_metrics` (``SAFETY_KEYS``).
     """
     flags = flags_for(config, positions, commanded)
     out: dict[str, object] = dict(episode_violations(flags))
@@ -182,8 +325,11 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
     out["count_align_unwrapped"] = study.sum(axis=0).astype(np.int64).tolist()
     out["steps"] = int(positions.shape[0])
     out["duration"] = float(positions.shape[0] * dt)
-    out["min_distance"] = float(pairwise_min_distance(positions).min())
-    out["collisions"] = collision_count(positions, robot_radius)
     out["polarization"] = float(polarization(velocities).mean())
     out["mean_leader_distance"] = float(leader_distance(positions).mean())
+    safety = safety_metrics(positions, robot_radius, arena_half_size, leader_path)
+    out["min_distance"] = safety.pop("min_distance")
+    # every contact onset, follower-follower and leader-follower (collision_count's number)
+    out["collisions"] = int(safety["contacts_follower"] + safety["contacts_leader"])
+    out.update(safety)
     return out

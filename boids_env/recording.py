@@ -40,13 +40,18 @@ class Recording:
     commanded: FloatArray
     extra: dict[str, Any] = field(default_factory=dict)
     """Free-form metadata (policy, seed, ...), stored with the file."""
+    leader_path: FloatArray | None = None
+    """The leader's scripted path as a polyline (M, 2) (None when unknown or external), for
+    its path deviation."""
 
     def metrics(self) -> dict[str, Any]:
-        """The episode's V_* and extra flock metrics, from the samples after each step."""
+        """The episode's V_*, extra flock and safety metrics, from the samples after each
+        step."""
         cfg = self.config
         return metrics.episode_metrics(self.positions[1:], self.velocities[1:],
                                        self.commanded[1:], cfg.metrics, cfg.world.dt,
-                                       cfg.world.robot_radius)
+                                       cfg.world.robot_radius, cfg.world.arena_half_size,
+                                       self.leader_path)
 
     def to_parquet(self, path: str | Path) -> None:
         """Writes the tidy table with the config in the schema metadata."""
@@ -63,7 +68,8 @@ class Recording:
             "cmd_vx": self.commanded[..., 0].ravel(), "cmd_vy": self.commanded[..., 1].ravel(),
         }
         table = pa.table(cols)
-        meta = {"config": self.config.to_dict(), "extra": self.extra}
+        meta = {"config": self.config.to_dict(), "extra": self.extra,
+                "leader_path": None if self.leader_path is None else self.leader_path.tolist()}
         table = table.replace_schema_metadata({"boids_env": json.dumps(meta)})
         pq.write_table(table, str(path))
 
@@ -92,9 +98,11 @@ class Recording:
         def pair(a: str, b: str) -> FloatArray:
             return np.stack([data[a][order], data[b][order]], axis=1).reshape(steps, n, 2)
 
+        path = meta.get("leader_path")
         return cls(EnvConfig.from_dict(meta["config"]), data["time"][order][::n].copy(),
                    pair("x", "y"), pair("vx", "vy"), pair("cmd_vx", "cmd_vy"),
-                   meta.get("extra", {}))
+                   meta.get("extra", {}),
+                   None if path is None else np.asarray(path, dtype=float).reshape(-1, 2))
 
 
 class Recorder:
@@ -114,5 +122,7 @@ class Recorder:
         self._cmd.append(world.commanded.copy())
 
     def recording(self, env: BoidsEnv, **extra: Any) -> Recording:
+        path = env.leader.reference_path()
         return Recording(env.episode_config, np.array(self._time), np.array(self._pos),
-                         np.array(self._vel), np.array(self._cmd), dict(extra))
+                         np.array(self._vel), np.array(self._cmd), dict(extra),
+                         None if path is None else np.asarray(path, dtype=float))

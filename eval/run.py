@@ -12,19 +12,26 @@ from boids_env.policies.registry import load_policy, split_preset
 
 METRIC_ROWS = (("V_sep", "separation violation (study)"), ("V_coh", "cohesion violation (study)"),
                ("V_align", "alignment violation (study)"),
-               ("min_distance", "min inter-robot distance (m)"),
-               ("collisions", "robot-robot contacts"), ("polarization", "polarization (mean)"),
+               ("polarization", "polarization (mean)"),
                ("mean_leader_distance", "mean distance to leader (m)"),
+               ("min_distance", "min inter-robot distance (m)"),
+               ("touching_fraction", "time some pair of robots touches"),
+               ("mean_contact_pairs", "pairs touching, mean"),
+               ("contacts_follower", "contact onsets follower-follower"),
+               ("contacts_leader", "contact onsets leader-follower"),
+               ("wall_fraction", "time some robot touches a wall"),
+               ("mean_nn_distance", "nearest-neighbour distance, mean (m)"),
+               ("leader_path_deviation", "leader off its scripted path, mean (m)"),
                ("duration", "episode length T (s)"))
 
 
 def metrics_table(metrics: dict[str, Any]) -> str:
     """The metrics as an aligned text table."""
-    lines = [f"{'metric':<20} {'value':>10}  meaning", "-" * 64]
+    lines = [f"{'metric':<24} {'value':>10}  meaning", "-" * 72]
     for key, meaning in METRIC_ROWS:
         value = metrics[key]
         shown = f"{value:.4f}" if isinstance(value, float) else str(value)
-        lines.append(f"{key:<20} {shown:>10}  {meaning}")
+        lines.append(f"{key:<24} {shown:>10}  {meaning}")
     return "\n".join(lines)
 
 

@@ -85,3 +85,80 @@ def test_reward_weights_scale_terms():
     assert t["separation"].tolist() == [pytest.approx(-0.2)]
     assert t["cohesion"].tolist() == [pytest.approx(-0.05)]
     assert t["alignment"].tolist() == [0.0]
+
+
+def test_safety_metrics_on_a_hand_made_trajectory():
+    r = 0.036
+    touch = 2 * r  # centre distance of two touching robots
+    # 4 samples, leader + 2 followers. Sample 1: followers touch; sample 2: leader touches
+    # follower 1 and follower 2 sits on the wall at x = 5 - r; sample 3: nobody touches.
+    pos = np.array([
+        [[0, 0], [1, 0], [2, 0]],
+        [[0, 0], [1, 0], [1 + touch, 0]],
+        [[0, 0], [touch, 0], [5 - r, 0]],
+        [[0, 0], [1, 0], [3, 0]],
+    ], dtype=float)
+    s = metrics.safety_metrics(pos, r, 5.0, leader_path=np.array([[0.0, -1], [0, 1]]))
+    assert s["touching_fraction"] == 0.5
+    assert s["mean_contact_pairs"] == 0.5
+    assert s["contacts_follower"] == 1 and s["contacts_leader"] == 1
+    assert s["wall_fraction"] == 0.25
+    nn = [np.mean([1, 1, 1]), np.mean([1, touch, touch]), np.mean([touch, touch, 5 - r - touch]),
+          np.mean([1, 1, 2])]
+    assert s["mean_nn_distance"] == pytest.approx(np.mean(nn))
+    assert s["min_distance"] == pytest.approx(touch)
+    assert s["leader_path_deviation"] == 0.0 and s["leader_path_deviation_max"] == 0.0
+    assert np.isnan(metrics.safety_metrics(pos, r, 5.0)["leader_path_deviation"])
+
+
+def test_safety_metrics_of_large_groups_match_brute_force():
+    rng = np.random.default_rng(3)
+    pos = np.cumsum(rng.normal(0, 0.02, (60, 70, 2)), axis=0) + rng.uniform(-1, 1, (1, 70, 2))
+    big = metrics.safety_metrics(pos, 0.036, 5.0)  # 70 robots: the KD-tree path
+    # compared with the definitions computed by brute force
+    small = {}
+    diff = pos[:, :, None] - pos[:, None]
+    dist = np.linalg.norm(diff, axis=-1) + np.where(np.eye(70, dtype=bool), np.inf, 0)
+    touching = np.triu(dist < 2 * 0.036 + metrics.CONTACT_TOLERANCE, 1)
+    small["touching_fraction"] = touching.any(axis=(1, 2)).mean()
+    small["mean_contact_pairs"] = touching.sum(axis=(1, 2)).mean()
+    onset = touching & ~np.concatenate([np.zeros_like(touching[:1]), touching[:-1]])
+    small["contacts_leader"] = onset[:, 0].sum()
+    small["contacts_follower"] = onset[:, 1:].sum()
+    small["mean_nn_distance"] = dist.min(axis=2).mean()
+    for key, value in small.items():
+        assert big[key] == pytest.approx(value), key
+    assert big["touching_fraction"] > 0 and big["contacts_follower"] > 0
+
+
+def test_path_deviation_to_a_polyline():
+    path = np.array([[0.0, 0], [4, 0], [4, 4]])
+    pts = np.array([[2.0, 1], [5, 2], [4, 5], [-1, 0]])
+    assert metrics.path_deviation(pts, path).tolist() == pytest.approx([1, 1, 1, 1])
+
+
+def test_safe_reward_terms_follow_the_flags():
+    e = parallel_env(robots=3, reward="safe", init_jitter=0.0, layout_spacing=0.2,
+                     startup_time=100)
+    e.reset(seed=0)
+    # push follower 2 onto follower 1 (cells (-0.2,-0.2) and (0.2,-0.2)): they get closer than
+    # the 0.3 m safety distance and finally touch
+    seen = set()
+    for _ in range(20):
+        _, rew, _, _, info = e.step({"follower_1": np.array([0.0, 0.0]),
+                                     "follower_2": np.array([-0.5, 0.0])})
+        i = info["follower_2"]
+        for key in ("reward_proximity", "reward_contact", "reward_wall"):
+            if i[key]:
+                seen.add(key)
+        assert rew["follower_2"] == pytest.approx(sum(i.values()))
+    assert seen == {"reward_proximity", "reward_contact"}
+    from boids_env.config import SAFE_WEIGHTS
+
+    assert i["reward_contact"] == pytest.approx(-SAFE_WEIGHTS["reward_contact"] * 0.1)
+    study = parallel_env(robots=3, init_jitter=0.0, layout_spacing=0.2, startup_time=100)
+    study.reset(seed=0)
+    for _ in range(20):
+        _, _, _, _, info = study.step({"follower_1": np.array([0.0, 0.0]),
+                                       "follower_2": np.array([-0.5, 0.0])})
+        assert info["follower_2"]["reward_contact"] == 0.0
