@@ -18,6 +18,9 @@ import numpy as np
 
 from boids_env.layout import follower_cells
 
+FRAMES = ("world", "leader")
+"""Observation (and action) frames: the study's world frame, or the leader's heading frame
+(opt-in; see :mod:`boids_env.observations`)."""
 PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "external")
 """Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
 
@@ -107,6 +110,12 @@ class ScenarioConfig:
     path_size: float = 4.0
     """Half extent of the leader path (m). 4.0 gives the paper's square exactly; the circle's
     diameter, the figure-eight's length and the random waypoints' box scale with it."""
+    path_rotation: float = 0.0
+    """Rotation (degrees, counter-clockwise about the leader's start) of the leader path and of
+    the initial layout: the whole scene turned. 0 is the study's. Opt-in, for robustness."""
+    path_mirror: bool = False
+    """Mirror the leader path and the initial layout in x before the rotation (the square then
+    turns right at its first corner). False is the study's."""
     waypoints: tuple[tuple[float, float], ...] = ()
     """Absolute targets (m) for ``path="waypoints"``; ignored by the other paths."""
     laps: int = 1
@@ -139,6 +148,10 @@ class ScenarioConfig:
             raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
         _set(self, "path_size", _number("path_size", self.path_size, 0.0, 1000, lo_open=True,
                                         unit="m"))
+        _set(self, "path_rotation", _number("path_rotation", self.path_rotation, -360, 360,
+                                            unit="degrees"))
+        if not isinstance(self.path_mirror, bool):
+            raise ValueError(f"path_mirror must be True or False, got {self.path_mirror!r}")
         _set(self, "waypoints", _waypoints(self.waypoints))
         if self.path == "waypoints" and not self.waypoints:
             raise ValueError("waypoints must hold at least one (x, y) target when "
@@ -184,13 +197,19 @@ class ObservationConfig:
     obs_noise: float = 0.0
     """Std of seeded Gaussian noise added to every observed position (m) and velocity (m/s);
     valid flags and empty slots stay exact. 0 (the study's exact sensing) by default."""
+    frame: str = "world"
+    """Frame of observations and actions, one of FRAMES: ``world`` (the study's) or
+    ``leader`` (x along the leader's heading, y to its left; opt-in, for policies that should
+    learn a formation relative to the leader)."""
 
     def __post_init__(self) -> None:
         _set(self, "horizon", _number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
         _set(self, "neighbours", _integer("neighbours", self.neighbours, 0, 1024))
         _set(self, "velocity_bound", _number("velocity_bound", self.velocity_bound, 0.0, 100,
                                              lo_open=True, unit="m/s"))
-        _set(self, "obs_noise", _number("obs_noise", self.obs_noise, 0.0, 10.0))
+        _set(self, "obs_noise", _number("obs_noise", self.obs_noise, 0.0, 10.0, unit="m, m/s"))
+        if self.frame not in FRAMES:
+            raise ValueError(f"frame must be one of {FRAMES}, got {self.frame!r}")
 
 
 REWARDS = ("study", "safe")
@@ -329,19 +348,33 @@ class EnvConfig:
         return cls.from_kwargs(**flat)
 
 
+def scene_matrix(scenario: ScenarioConfig) -> np.ndarray:
+    """The matrix T (2, 2) of ``path_rotation`` and ``path_mirror``: world = T @ local."""
+    a = math.radians(scenario.path_rotation)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    return rot @ np.diag([-1.0 if scenario.path_mirror else 1.0, 1.0])
+
+
 def layout_extent(scenario: ScenarioConfig) -> float:
     """Largest |coordinate| (m) an initial position can take, jitter included."""
-    cells = follower_cells(scenario.robots, scenario.layout_spacing)
+    cells = follower_cells(scenario.robots, scenario.layout_spacing) @ scene_matrix(scenario).T
     return float(np.abs(cells).max(initial=0.0)) + scenario.init_jitter
 
 
 def path_extent(scenario: ScenarioConfig) -> float:
-    """Largest |coordinate| (m) the leader's path reaches (0 for an external leader)."""
+    """Largest |coordinate| (m) the leader's path can reach (0 for an external leader): the
+    corners of the path's bounding box in its own frame, turned into the world."""
+    s = scenario.path_size
     if scenario.path == "waypoints":
-        return float(np.abs(np.array(scenario.waypoints)).max())
-    if scenario.path == "external":
+        points = np.array(scenario.waypoints)
+    elif scenario.path == "external":
         return 0.0
-    return scenario.path_size
+    else:
+        box = {"square": (-s, s, -s, s), "random_waypoints": (-s, s, -s, s),
+               "circle": (-s, 0.0, -s / 2, s / 2), "figure_eight": (-s / 2, s / 2, -s, s)}
+        x0, x1, y0, y1 = box[scenario.path]
+        points = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
+    return float(np.abs(points @ scene_matrix(scenario).T).max())
 
 
 def _check_fits(config: EnvConfig) -> None:

@@ -16,7 +16,7 @@ from pettingzoo.utils.conversions import parallel_to_aec, parallel_to_aec_wrappe
 from boids_env import metrics, scenario
 from boids_env.config import EnvConfig, ScenarioConfig
 from boids_env.leader import ExternalLeader, Leader, make_leader
-from boids_env.observations import ObservationLayout, build_observations
+from boids_env.observations import Observer
 from boids_env.world import Snapshot, World
 
 AgentID = str
@@ -100,7 +100,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         n = self.config.scenario.robots
         self.possible_agents: list[AgentID] = [f"follower_{i}" for i in range(1, n)]
         self.agents: list[AgentID] = []
-        self.layout = ObservationLayout(obs_cfg.neighbours)
+        self._observer = Observer(self.config)
+        self.layout = self._observer.layout
+        # one Box object per agent (seeding one agent's space must not reseed the others')
         self.observation_spaces = {
             a: self.layout.space(world.arena_half_size, obs_cfg.horizon, obs_cfg.velocity_bound)
             for a in self.possible_agents}
@@ -148,13 +150,15 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self.episode_config = episode
         sc, wc = episode.scenario, episode.world
         self._initial_positions = scenario.initial_positions(sc, self._rng)
-        self._leader = make_leader(sc, self._rng)
+        self._leader = make_leader(sc, self._rng, wc.dt)
         self._world = World(wc, self._initial_positions)
         self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
         self._tail_steps = round(sc.tail_time / wc.dt)
         self._finish_step: int | None = None
         self._history: list[npt.NDArray[np.float64]] = []
         self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)
+        self._observer = Observer(episode)
+        self._observer.reset(self._rng, self._leader.initial_heading)
         self._reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
         self._safety_scale = -np.array(episode.metrics.safety_weights)[:, None] * wc.dt
         self.agents = list(self.possible_agents)
@@ -194,7 +198,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                 raise RuntimeError("the episode has ended (every follower is truncated); call "
                                    "reset() before stepping again")
             return {}, {}, {}, {}, {}
-        commands = self._parse_actions(actions)
+        commands = self._observer.to_world(self._parse_actions(actions))
         world, leader = self._world, self._leader
         assert leader is not None
         full = np.empty((len(commands) + 1, 2))
@@ -270,20 +274,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
 
     def _observe(self) -> npt.NDArray[np.float32]:
         assert self._world is not None
-        cfg = self.episode_config
-        obs = build_observations(self._world.positions, self._world.velocities, self.layout,
-                                 cfg.observation.horizon, cfg.observation.velocity_bound,
-                                 cfg.world.arena_half_size)
-        if cfg.observation.obs_noise > 0:
-            assert self._rng is not None
-            noise = self._rng.normal(0.0, cfg.observation.obs_noise, obs.shape)
-            slots = self.layout.slots(noise)
-            valid = self.layout.slot_valid(self.layout.slots(obs))
-            slots[..., :4] *= valid[..., None]
-            slots[..., 4] = 0.0
-            space = self.observation_spaces[self.possible_agents[0]]
-            obs = np.clip(obs + noise, space.low, space.high).astype(np.float32)
-        return obs
+        return self._observer(self._world.positions, self._world.velocities)
 
     # -------------------------------------------------------------------------- queries
     @property

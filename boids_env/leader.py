@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.config import scene_matrix
+
 if TYPE_CHECKING:
     from boids_env.config import ScenarioConfig
 
@@ -24,18 +26,31 @@ PAPER_SQUARE = ((0.0, 4.0), (-4.0, 4.0), (-4.0, -4.0), (4.0, -4.0), (4.0, 4.0), 
 
 
 class Leader:
-    """Base class: zero command until the start-up time, then the path's own command."""
+    """Base class: zero command until the start-up time, then the path's own command.
 
-    def __init__(self, speed: float, startup_time: float) -> None:
+    Subclasses script their path in its own frame (``_move``); ``transform`` (from
+    :func:`boids_env.config.scene_matrix`) places that frame in the world, so a rotated or
+    mirrored square is exactly the study's square turned.
+    """
+
+    def __init__(self, speed: float, startup_time: float, transform: Vec | None = None) -> None:
         self.speed = speed
         self.startup_time = startup_time
         self.finished = False
+        turn = np.eye(2) if transform is None else np.asarray(transform, dtype=float)
+        self.transform = turn
+        # The identity is skipped, not multiplied: x·1 + y·0 turns −0.0 into 0.0, which flips
+        # a heading of exactly ±180° and so the study's unwrapped alignment rule.
+        self._turned = not np.array_equal(turn, np.eye(2))
 
     def command(self, t: float, position: Vec) -> Vec:
         """Velocity command (m/s) at time ``t`` (s since reset) for the measured ``position``."""
         if t < self.startup_time - 1e-9 or self.finished:
             return np.zeros(2)
-        return self._move(t - self.startup_time, position)
+        if not self._turned:
+            return self._move(t - self.startup_time, position)
+        local = np.asarray(position, dtype=float) @ self.transform  # T⁻¹ = Tᵀ
+        return self._move(t - self.startup_time, local) @ self.transform.T
 
     def _move(self, t: float, position: Vec) -> Vec:
         raise NotImplementedError
@@ -46,9 +61,29 @@ class Leader:
         return None
 
     def reference_path(self) -> Vec | None:
-        """The scripted path as a polyline (M, 2) in metres (None: no script, e.g. external),
-        for the leader's path deviation."""
+        """The scripted path as a polyline (M, 2) in metres, world frame (None: no script, e.g.
+        external), for the leader's path deviation."""
+        local = self._local_path()
+        if local is None or not self._turned:
+            return local
+        return local @ self.transform.T
+
+    def _local_path(self) -> Vec | None:
         return None
+
+    @property
+    def initial_heading(self) -> float:
+        """Direction (rad, world frame) of the path's first move: where the leader faces at
+        the start (the leader frame of the observations starts there)."""
+        path = self._local_path()
+        direction = np.array([0.0, 1.0])
+        if path is not None:
+            steps = np.diff(path, axis=0)
+            moving = np.flatnonzero(np.hypot(steps[:, 0], steps[:, 1]) > 1e-9)
+            if len(moving):
+                direction = steps[moving[0]]
+        x, y = self.transform @ direction
+        return math.atan2(y, x)
 
 
 class WaypointLeader(Leader):
@@ -60,8 +95,10 @@ class WaypointLeader(Leader):
     """
 
     def __init__(self, targets: npt.ArrayLike, speed: float, startup_time: float, margin: float,
-                 *, axis_aligned: bool, start: npt.ArrayLike = (0.0, 0.0)) -> None:
-        super().__init__(speed, startup_time)
+                 *, axis_aligned: bool, start: npt.ArrayLike = (0.0, 0.0),
+                 transform: Vec | None = None, dt: float | None = None) -> None:
+        super().__init__(speed, startup_time, transform)
+        self.dt = dt
         self.targets = np.asarray(targets, dtype=float).reshape(-1, 2)
         self.margin = margin
         self.axis_aligned = axis_aligned
@@ -78,21 +115,29 @@ class WaypointLeader(Leader):
                 axis = self._axes[self.index]
                 if abs(offset[axis]) > self.margin:
                     out = np.zeros(2)
-                    out[axis] = math.copysign(self.speed, offset[axis])
+                    out[axis] = math.copysign(self._speed_for(abs(offset[axis])), offset[axis])
                     return out
             else:
                 distance = math.hypot(offset[0], offset[1])
                 if distance > self.margin:
-                    return offset * (self.speed / distance)
+                    return offset * (self._speed_for(distance) / distance)
             self.index += 1  # arrived: corners are instantaneous
         self.finished = True
         return np.zeros(2)
+
+    def _speed_for(self, remaining: float) -> float:
+        """The path speed, slowed on a move's last step so that a fast leader with a small
+        arrival margin lands within the margin instead of overshooting its target forever.
+        With the study's numbers (0.55 m/s, 0.1 m margin, 0.1 s) it never slows."""
+        if self.dt is None:
+            return self.speed
+        return min(self.speed, remaining / self.dt)
 
     @property
     def nominal_duration(self) -> float:
         return (self._length - len(self.targets) * self.margin) / self.speed
 
-    def reference_path(self) -> Vec:
+    def _local_path(self) -> Vec:
         return np.vstack([self.start, self.targets])
 
 
@@ -104,8 +149,8 @@ class CurveLeader(Leader):
     """Proportional gain (1/s) pulling the leader back onto its reference point."""
 
     def __init__(self, curve: Callable[[Vec], Vec], speed: float, startup_time: float,
-                 laps: int) -> None:
-        super().__init__(speed, startup_time)
+                 laps: int, transform: Vec | None = None) -> None:
+        super().__init__(speed, startup_time, transform)
         phase = np.linspace(0.0, 2 * math.pi * laps, 4000 * laps + 1)
         self._points = curve(phase)
         seg = np.linalg.norm(np.diff(self._points, axis=0), axis=1)
@@ -133,13 +178,14 @@ class CurveLeader(Leader):
     def nominal_duration(self) -> float:
         return float(self._arc[-1]) / self.speed
 
-    def reference_path(self) -> Vec:
+    def _local_path(self) -> Vec:
         return self._points.copy()
 
 
 class ExternalLeader(Leader):
     """A leader driven from outside: :meth:`set_command` (keyboard, scripts) or a callable
-    ``controller(t, position) -> velocity``. Its path never finishes."""
+    ``controller(t, position) -> velocity``, in the world frame (a scene transform does not
+    apply to it). Its path never finishes."""
 
     def __init__(self, speed: float, startup_time: float,
                  controller: Callable[[float, Vec], npt.ArrayLike] | None = None) -> None:
@@ -155,35 +201,43 @@ class ExternalLeader(Leader):
         norm = float(np.linalg.norm(v))
         self._command = v * (2.0 / norm) if norm > 2.0 else v
 
-    def _move(self, t: float, position: Vec) -> Vec:
+    def command(self, t: float, position: Vec) -> Vec:
+        if t < self.startup_time - 1e-9:
+            return np.zeros(2)
         if self.controller is not None:
-            self.set_command(self.controller(t, position))
+            self.set_command(self.controller(t - self.startup_time, position))
         return self._command.copy()
 
 
-def make_leader(scenario: ScenarioConfig, rng: np.random.Generator) -> Leader:
-    """Builds the leader of ``scenario.path``; ``rng`` draws the random waypoints."""
+def make_leader(scenario: ScenarioConfig, rng: np.random.Generator, dt: float | None = None
+                ) -> Leader:
+    """Builds the leader of ``scenario.path``, turned by ``path_rotation`` / ``path_mirror``;
+    ``rng`` draws the random waypoints; ``dt`` (the control period) lets waypoint moves land."""
     size, speed, start = scenario.path_size, scenario.leader_speed, scenario.startup_time
     margin = scenario.arrival_margin
+    turn = scene_matrix(scenario)
     if scenario.path == "square":
         targets = np.array(PAPER_SQUARE) * (size / 4.0)
-        return WaypointLeader(targets, speed, start, margin, axis_aligned=True)
+        return WaypointLeader(targets, speed, start, margin, axis_aligned=True, transform=turn,
+                              dt=dt)
     if scenario.path == "waypoints":
-        return WaypointLeader(scenario.waypoints, speed, start, margin, axis_aligned=False)
+        return WaypointLeader(scenario.waypoints, speed, start, margin, axis_aligned=False,
+                              transform=turn, dt=dt)
     if scenario.path == "random_waypoints":
         targets = rng.uniform(-size, size, (scenario.random_waypoint_count, 2))
-        return WaypointLeader(targets, speed, start, margin, axis_aligned=False)
+        return WaypointLeader(targets, speed, start, margin, axis_aligned=False, transform=turn,
+                              dt=dt)
     if scenario.path == "circle":
         radius = size / 2
 
         def circle(phi: Vec) -> Vec:  # through the origin, heading +y, centre (-r, 0)
             return np.stack([radius * (np.cos(phi) - 1), radius * np.sin(phi)], axis=1)
 
-        return CurveLeader(circle, speed, start, scenario.laps)
+        return CurveLeader(circle, speed, start, scenario.laps, turn)
     if scenario.path == "figure_eight":
 
         def eight(phi: Vec) -> Vec:  # through the origin, lobes above and below it
             return np.stack([-size / 2 * np.sin(2 * phi), size * np.sin(phi)], axis=1)
 
-        return CurveLeader(eight, speed, start, scenario.laps)
+        return CurveLeader(eight, speed, start, scenario.laps, turn)
     return ExternalLeader(speed, start)

@@ -13,19 +13,37 @@ name                   size    meaning
 =====================  ======  ==============================================================
 
 Neighbours are the other robots j with 0 < |p_j − p_i| ≤ horizon, the leader included, as in the
-original controller. Everything here is a pure function of numpy arrays (no physics).
+original controller.
+
+Frames: by default (``frame="world"``, the study's) every vector is in the world frame. With
+``frame="leader"`` (opt-in) every vector is expressed in the leader's heading frame (x forward
+along the leader's motion, y to its left), and actions are read in the same frame, so a
+formation learned relative to the leader holds on any path. :class:`Observer` is the one place
+that builds observations (the env and the ROS controller node use it); everything else here is
+a pure function of numpy arrays (no physics).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
 from scipy.spatial import cKDTree
 
+if TYPE_CHECKING:
+    from boids_env.config import EnvConfig
+
 FloatArray = npt.NDArray[np.floating]
+HEADING_MIN_SPEED = 0.05
+"""The leader frame follows the leader's measured velocity from this speed (m/s) on; below it
+(start-up, corners) the last heading is kept."""
+INITIAL_HEADING = math.pi / 2
+"""Default heading (rad) of the leader frame before the leader first moves: +y, the first leg
+of the study's square (the env passes its leader's own first direction)."""
 
 SLOT_SIZE = 5
 KD_TREE_MIN_ROBOTS = 96
@@ -127,8 +145,17 @@ def nearest_neighbours(positions: FloatArray, horizon: float, k: int
     return index, nearest
 
 
+def rotation(heading: float) -> npt.NDArray[np.float64]:
+    """The matrix (2, 2) taking world vectors (rows, ``v @ R``) into the frame whose x axis
+    points along ``heading`` (rad): ``v_frame = v_world @ rotation(heading)``; its transpose
+    goes back."""
+    c, s = math.cos(heading), math.sin(heading)
+    return np.array([[c, -s], [s, c]])
+
+
 def build_observations(positions: FloatArray, velocities: FloatArray, layout: ObservationLayout,
-                       horizon: float, velocity_bound: float, arena_half_size: float
+                       horizon: float, velocity_bound: float, arena_half_size: float,
+                       frame: npt.NDArray[np.float64] | None = None
                        ) -> npt.NDArray[np.float32]:
     """Observations of every follower, one row each: ``(N-1, layout.size)`` float32.
 
@@ -139,9 +166,16 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         horizon: neighbour radius (m).
         velocity_bound: velocities are clipped to ±this (m/s), keeping obs inside the Box.
         arena_half_size: bounds the leader's relative position.
+        frame: a :func:`rotation` matrix; every vector is expressed in that frame (None: the
+            world frame).
     """
     n = len(positions)
     followers = n - 1
+    if frame is not None:
+        # Distances do not change under a rotation, so the neighbour search and its order are
+        # the same; rotating the inputs rotates every vector of the observation.
+        positions = positions @ frame
+        velocities = velocities @ frame
     # One feature table, a row per robot plus an all-zero row that empty slots point at:
     # position, velocity (clipped), valid flag. Slots are one gather from it.
     table = np.zeros((n + 1, SLOT_SIZE))
@@ -160,3 +194,64 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         gathered[..., 0:2] -= positions[1:, None, :] * gathered[..., 4:5]
         obs[:, layout.neighbours_start:] = gathered.reshape(followers, -1)
     return obs
+
+
+class Observer:
+    """Builds every follower's observation from the world's arrays: the env's and the ROS
+    controller node's one source of observations.
+
+    It holds the two pieces of state observations need: the leader frame's heading
+    (``frame="leader"``) and the random stream of the opt-in sensing noise (``obs_noise``).
+
+    Args:
+        config: the env config (its ``observation`` section and the arena size).
+    """
+
+    def __init__(self, config: EnvConfig) -> None:
+        obs, world = config.observation, config.world
+        self.config = config
+        self.layout = ObservationLayout(obs.neighbours)
+        self.space = self.layout.space(world.arena_half_size, obs.horizon, obs.velocity_bound)
+        self.heading = INITIAL_HEADING
+        self._rng: np.random.Generator | None = None
+
+    def reset(self, rng: np.random.Generator | None = None,
+              heading: float = INITIAL_HEADING) -> None:
+        """Starts an episode: ``rng`` draws the sensing noise; ``heading`` (rad) is the leader
+        frame's until the leader moves (where the leader faces: its path's first move)."""
+        self.heading = float(heading)
+        self._rng = rng
+
+    @property
+    def frame(self) -> npt.NDArray[np.float64] | None:
+        """The current :func:`rotation` (None in the world frame)."""
+        return rotation(self.heading) if self.config.observation.frame == "leader" else None
+
+    def to_world(self, actions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """Actions (F, 2) in the observation frame of the last call, in the world frame."""
+        frame = self.frame
+        return actions if frame is None else actions @ frame.T
+
+    def __call__(self, positions: FloatArray, velocities: FloatArray
+                 ) -> npt.NDArray[np.float32]:
+        """Observations (N-1, size) of the robots' positions and velocities (N, 2), leader
+        first. In the leader frame the heading first follows the leader's velocity."""
+        cfg, world = self.config.observation, self.config.world
+        if cfg.frame == "leader":
+            vx, vy = float(velocities[0][0]), float(velocities[0][1])
+            if math.hypot(vx, vy) >= HEADING_MIN_SPEED:
+                self.heading = math.atan2(vy, vx)
+        obs = build_observations(positions, velocities, self.layout, cfg.horizon,
+                                 cfg.velocity_bound, world.arena_half_size, self.frame)
+        if cfg.obs_noise > 0:
+            if self._rng is None:
+                raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")
+            noise = self._rng.normal(0.0, cfg.obs_noise, obs.shape)
+            slots = self.layout.slots(noise)
+            valid = self.layout.slot_valid(self.layout.slots(obs))
+            slots[..., :4] *= valid[..., None]
+            slots[..., 4] = 0.0
+            obs = obs + noise
+        if cfg.obs_noise > 0 or cfg.frame != "world":
+            obs = np.clip(obs, self.space.low, self.space.high).astype(np.float32)
+        return obs

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.config import scene_matrix
 from boids_env.layout import PAPER_LAYOUTS, follower_cells, grid_cells
 
 if TYPE_CHECKING:
@@ -20,10 +21,13 @@ def initial_positions(scenario: ScenarioConfig, rng: np.random.Generator | None
                       ) -> npt.NDArray[np.float64]:
     """Initial positions (N, 2) in metres, the leader first at the origin.
 
-    The study's cells for N = 7, 13, 19 at 0.5 m spacing; the grid extension otherwise. Every
-    follower gets a uniform jitter of ±``init_jitter`` per coordinate from ``rng``.
+    The study's cells for N = 7, 13, 19 at 0.5 m spacing; the grid extension otherwise; turned
+    with the path by ``path_rotation`` / ``path_mirror``. Every follower gets a uniform jitter
+    of ±``init_jitter`` per coordinate from ``rng``.
     """
     cells = follower_cells(scenario.robots, scenario.layout_spacing)
+    if scenario.path_rotation or scenario.path_mirror:
+        cells = cells @ scene_matrix(scenario).T
     if rng is not None and scenario.init_jitter > 0:
         cells = cells + rng.uniform(-scenario.init_jitter, scenario.init_jitter, cells.shape)
     return np.concatenate([np.zeros((1, 2)), cells])

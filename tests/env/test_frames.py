@@ -1,0 +1,121 @@
+"""The opt-in leader frame, and turned scenes (``path_rotation``, ``path_mirror``)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from boids_env import EnvConfig, parallel_env
+from boids_env.observations import Observer
+
+
+def _turn(deg):
+    a = math.radians(deg)
+    return np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+
+
+class LinearPolicy:
+    """A fixed, deterministic function of the observation (random weights)."""
+
+    def __init__(self, size, seed=0):
+        rng = np.random.default_rng(seed)
+        self.w1 = rng.normal(0, 0.3, (size, 16))
+        self.w2 = rng.normal(0, 0.3, (16, 2))
+
+    def __call__(self, obs):
+        return 0.5 * np.tanh(np.tanh(obs @ self.w1) @ self.w2)
+
+
+@pytest.mark.parametrize("deg", [30.0, 90.0, -135.0])
+def test_observations_in_the_leader_frame_do_not_change_when_the_scene_turns(deg):
+    rng = np.random.default_rng(4)
+    pos = rng.uniform(-1.5, 1.5, (9, 2))
+    vel = rng.uniform(-0.5, 0.5, (9, 2))
+    vel[0] = [0.3, 0.4]  # the leader moves: its heading sets the frame
+    config = EnvConfig.from_kwargs(robots=9, frame="leader")
+    turn = _turn(deg)
+    a, b = Observer(config), Observer(config)
+    a.reset(None)
+    b.reset(None)
+    obs_a, obs_b = a(pos, vel), b(pos @ turn.T, vel @ turn.T)
+    np.testing.assert_allclose(obs_b, obs_a, atol=1e-6)
+    # the same frame actions are different world commands, turned by the same angle
+    act = rng.uniform(-0.5, 0.5, (8, 2))
+    np.testing.assert_allclose(b.to_world(act), a.to_world(act) @ turn.T, atol=1e-12)
+    # and in the world frame the observations do turn
+    world = EnvConfig.from_kwargs(robots=9)
+    wa, wb = Observer(world), Observer(world)
+    assert not np.allclose(wa(pos, vel), wb(pos @ turn.T, vel @ turn.T), atol=1e-3)
+
+
+def test_a_turned_scene_turns_every_command_of_a_leader_frame_policy():
+    deg = 30.0
+    turn = _turn(deg)
+    # path_size 1.47: no corner falls exactly on the 0.1 m arrival margin (a float tie)
+    fields = dict(robots=7, path_size=1.47, init_jitter=0.0, frame="leader", max_cycles=80)
+    plain, turned = parallel_env(**fields), parallel_env(**fields, path_rotation=deg)
+    obs_p, _ = plain.reset(seed=0)
+    obs_t, _ = turned.reset(seed=0)
+    policy = LinearPolicy(plain.layout.size)
+    for step in range(80):
+        for agent in plain.agents:
+            np.testing.assert_allclose(obs_t[agent], obs_p[agent], atol=1e-4,
+                                       err_msg=f"step {step}, {agent}")
+        act_p = {a: policy(obs_p[a]) for a in plain.agents}
+        act_t = {a: policy(obs_t[a]) for a in turned.agents}
+        obs_p, *_ = plain.step(act_p)
+        obs_t, *_ = turned.step(act_t)
+        sp, st = plain.snapshot(), turned.snapshot()
+        np.testing.assert_allclose(st.commanded, sp.commanded @ turn.T, atol=1e-4,
+                                   err_msg=f"step {step}")
+        np.testing.assert_allclose(st.positions, sp.positions @ turn.T, atol=1e-4,
+                                   err_msg=f"step {step}")
+    assert np.abs(sp.commanded[1:]).max() > 0.05, "the policy commanded something"
+
+
+def test_world_frame_is_the_default_and_actions_are_world_commands():
+    env = parallel_env(robots=3, startup_time=100)
+    env.reset(seed=0)
+    env.step({"follower_1": np.array([0.3, -0.2]), "follower_2": np.array([0.0, 0.1])})
+    np.testing.assert_array_equal(env.snapshot().commanded[1:], [[0.3, -0.2], [0.0, 0.1]])
+
+
+def test_leader_frame_starts_along_the_first_move_and_follows_the_leader():
+    env = parallel_env(robots=3, frame="leader", init_jitter=0.0)
+    obs, _ = env.reset(seed=0)
+    # at rest the frame faces the square's first leg (+y): the leader is ahead (+x in frame)
+    rel = obs["follower_1"][env.layout.leader_position]
+    world = np.array([0.5, 0.5])  # follower 1 sits at (-0.5, -0.5)
+    np.testing.assert_allclose(rel, [world[1], -world[0]], atol=1e-6)
+    mirrored = parallel_env(robots=3, frame="leader", path_mirror=True, path_rotation=90)
+    mirrored.reset(seed=0)
+    assert mirrored.leader.initial_heading == pytest.approx(math.pi)  # (0,1) turned by 90°
+
+
+def test_turned_and_mirrored_squares_are_the_study_square_turned():
+    base = parallel_env(robots=2, init_jitter=0.0)
+    base.reset(seed=0)
+    path = base.leader.reference_path()
+    for deg, mirror in [(90.0, False), (0.0, True), (45.0, True)]:
+        env = parallel_env(robots=2, init_jitter=0.0, path_rotation=deg, path_mirror=mirror,
+                           path_size=3.0)
+        env.reset(seed=0)
+        m = np.diag([-1.0 if mirror else 1.0, 1.0])
+        np.testing.assert_allclose(env.leader.reference_path(),
+                                   path * 0.75 @ (_turn(deg) @ m).T, atol=1e-12)
+
+
+def test_a_turned_square_that_leaves_the_arena_is_refused():
+    with pytest.raises(ValueError, match="path_size"):
+        parallel_env(path_rotation=45)  # corners at 5.66 m in a 5 m arena
+
+
+def test_a_fast_leader_with_a_small_margin_still_finishes_its_path():
+    env = parallel_env(robots=2, leader_speed=2.0, arrival_margin=0.01)
+    env.reset(seed=0)
+    steps = 0
+    while env.agents:
+        env.step({"follower_1": np.zeros(2)})
+        steps += 1
+    assert env.leader.finished, "the leader overshot its targets forever"
+    assert steps < 400, steps
