@@ -21,6 +21,10 @@ from boids_env.layout import follower_cells
 FRAMES = ("world", "leader")
 """Observation (and action) frames: the study's world frame, or the leader's heading frame
 (opt-in; see :mod:`boids_env.observations`)."""
+LEADER_MAX_SPEED = 2.0
+"""Fastest leader (m/s): the bound of ``leader_speed`` and of an external leader's command."""
+CURVE_SPEED_FACTOR = 1.5
+"""A curve-following leader may command up to this × ``leader_speed`` to regain its path."""
 PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "external")
 """Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
 
@@ -85,7 +89,7 @@ class WorldConfig:
                                               unit="m"))
         _set(self, "robot_radius", _number("robot_radius", self.robot_radius, 0.0, 0.5,
                                            lo_open=True, unit="m"))
-        _set(self, "robot_mass", _number("robot_mass", self.robot_mass, 0.0, 100, lo_open=True,
+        _set(self, "robot_mass", _number("robot_mass", self.robot_mass, 0.001, 100,
                                          unit="kg"))
         _set(self, "max_speed", _number("max_speed", self.max_speed, 0.0, 5.0, lo_open=True,
                                         unit="m/s"))
@@ -142,8 +146,8 @@ class ScenarioConfig:
 
     def __post_init__(self) -> None:
         _set(self, "robots", _integer("robots", self.robots, 2, 10_000))
-        _set(self, "leader_speed", _number("leader_speed", self.leader_speed, 0.0, 2.0,
-                                           lo_open=True, unit="m/s"))
+        _set(self, "leader_speed", _number("leader_speed", self.leader_speed, 0.0,
+                                           LEADER_MAX_SPEED, lo_open=True, unit="m/s"))
         if self.path not in PATHS:
             raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
         _set(self, "path_size", _number("path_size", self.path_size, 0.0, 1000, lo_open=True,
@@ -377,21 +381,81 @@ def path_extent(scenario: ScenarioConfig) -> float:
     return float(np.abs(points @ scene_matrix(scenario).T).max())
 
 
+def fastest_speed(config: EnvConfig) -> tuple[float, str]:
+    """The fastest a robot of this config is ever commanded (m/s) and what sets it: followers'
+    ``max_speed``, the ``leader_speed`` (a curve's correction included), or an external
+    leader's cap."""
+    sc = config.scenario
+    if sc.path == "external":
+        leader = (LEADER_MAX_SPEED, f"an external leader's cap ({LEADER_MAX_SPEED:g} m/s)")
+    elif sc.path in ("circle", "figure_eight"):
+        leader = (sc.leader_speed * CURVE_SPEED_FACTOR,
+                  f"leader_speed={sc.leader_speed:g} m/s × {CURVE_SPEED_FACTOR:g} on a curve")
+    else:
+        leader = (sc.leader_speed, f"leader_speed={sc.leader_speed:g} m/s")
+    follower = (config.world.max_speed, f"max_speed={config.world.max_speed:g} m/s")
+    return max(follower, leader)
+
+
+MAX_DRIVE_ACCELERATION = 100.0
+"""Largest drive acceleration drive_force / robot_mass (m/s², about 10 g; the study's robot:
+5.6). Stronger drives push crowds through walls faster than contacts can resolve."""
+
+
+def _check_physics(config: EnvConfig) -> None:
+    """Refuses combinations the physics cannot hold: a physics substep moving a robot farther
+    than its radius (robots could pass through each other), a drive accelerating a robot harder
+    than contacts can hold, a collision slop that is a large part of a robot, and initial cells
+    closer than a robot's diameter (robots would start overlapping)."""
+    w, sc = config.world, config.scenario
+    accel = w.drive_force / w.robot_mass
+    if accel > MAX_DRIVE_ACCELERATION:
+        raise ValueError(
+            f"drive_force / robot_mass must be at most {MAX_DRIVE_ACCELERATION:g} m/s², got "
+            f"{w.drive_force:g} N / {w.robot_mass:g} kg = {accel:.4g} m/s²")
+    if w.collision_slop > w.robot_radius / 4:
+        raise ValueError(
+            f"collision_slop must be at most a quarter of robot_radius ({w.robot_radius / 4:g} m)"
+            f", got {w.collision_slop:g} m")
+    fastest, why = fastest_speed(config)
+    travel = fastest * w.dt / w.substeps
+    if travel > w.robot_radius:
+        need = math.ceil(fastest * w.dt / w.robot_radius)
+        raise ValueError(
+            f"dt / substeps too coarse for the speed: robots commanded up to {why} move "
+            f"{travel * 1000:.1f} mm per physics substep (dt={w.dt:g} s / substeps="
+            f"{w.substeps}), more than robot_radius={w.robot_radius * 1000:g} mm, so they could "
+            f"pass through each other; use substeps >= {need} or a smaller dt or speed")
+    gap = sc.layout_spacing - 2 * sc.init_jitter
+    if sc.robots > 1 and gap <= 2 * w.robot_radius:
+        raise ValueError(
+            f"initial robots could overlap: layout_spacing ({sc.layout_spacing:g} m) minus twice "
+            f"init_jitter ({sc.init_jitter:g} m) must exceed a robot's diameter "
+            f"(2 × robot_radius = {2 * w.robot_radius:g} m)")
+
+
 def _check_fits(config: EnvConfig) -> None:
-    """Raises ``ValueError`` if the initial layout or the leader path leaves the arena."""
+    """Raises ``ValueError`` if the initial layout or the leader path leaves the arena, or the
+    physics cannot hold (see ``_check_physics``)."""
+    _check_physics(config)
     half = config.world.arena_half_size
     room = half - config.world.robot_radius
     need = layout_extent(config.scenario)
     if need >= room:
+        sc = config.scenario
         raise ValueError(
             f"arena_half_size must exceed {need + config.world.robot_radius:.2f} m to hold the "
-            f"initial grid of robots={config.scenario.robots}, got {half}")
+            f"initial grid of robots={sc.robots} at layout_spacing={sc.layout_spacing:g} m "
+            f"(init_jitter={sc.init_jitter:g} m, robot_radius={config.world.robot_radius:g} m, "
+            f"path_rotation={sc.path_rotation:g}°), got {half}")
     reach = path_extent(config.scenario)
     if reach + config.scenario.arrival_margin >= room:
+        sc = config.scenario
         raise ValueError(
-            f"the leader path '{config.scenario.path}' reaches {reach:.2f} m: path_size / "
-            f"waypoints must stay below {room - config.scenario.arrival_margin:.2f} m for "
-            f"arena_half_size={half}")
+            f"the leader path '{sc.path}' (path_size={sc.path_size:g} m, path_rotation="
+            f"{sc.path_rotation:g}°) reaches {reach:.2f} m: path_size / waypoints must keep it "
+            f"below {room - sc.arrival_margin:.2f} m (arena_half_size={half} minus "
+            f"robot_radius and arrival_margin)")
 
 
 @dataclass(frozen=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import warnings
 from collections.abc import Mapping
 from dataclasses import fields
@@ -11,12 +12,14 @@ import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
-from pettingzoo.utils.conversions import parallel_to_aec, parallel_to_aec_wrapper
+from pettingzoo.utils.conversions import parallel_to_aec_wrapper
+from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from boids_env import metrics, scenario
 from boids_env.config import EnvConfig, ScenarioConfig
 from boids_env.leader import ExternalLeader, Leader, make_leader
 from boids_env.observations import Observer
+from boids_env.vectors import as_velocities, clip_speed
 from boids_env.world import Snapshot, World
 
 AgentID = str
@@ -250,27 +253,18 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             missing = [a for a in self.agents if a not in actions]
             raise KeyError(f"actions must hold exactly the live agents; unknown: {unknown}, "
                            f"missing: {missing}")
-        try:
-            arr = np.array([actions[a] for a in self.agents], dtype=np.float64)
-        except (TypeError, ValueError):
-            arr = None
-        if arr is None or arr.shape != (len(self.agents), 2):
-            for a in self.agents:
-                shape = np.shape(actions[a]) if _numeric(actions[a]) else None
-                if shape != (2,):
-                    raise ValueError(f"action of {a} must be 2 numbers (vx, vy) in m/s, got "
-                                     f"{actions[a]!r}")
-            raise ValueError("actions must be 2 numbers per agent")  # pragma: no cover
-        if not np.isfinite(arr).all():
-            bad = [a for a, row in zip(self.agents, arr, strict=True)
-                   if not np.isfinite(row).all()]
-            raise ValueError(f"actions must be finite; NaN or inf from {bad}")
-        limit = self.episode_config.world.max_speed
-        speed = np.sqrt(np.einsum("fd,fd->f", arr, arr))
-        over = speed > limit
-        if over.any():
-            arr[over] *= (limit / speed[over])[:, None]
-        return arr
+        values = [actions[a] for a in self.agents]
+        if all(type(v) is np.ndarray and v.shape == (2,) and v.dtype.kind in "iuf"
+               for v in values):  # the common case: what policies return
+            arr = np.array(values, dtype=np.float64)
+            if not np.isfinite(arr).all():
+                bad = [a for a, row in zip(self.agents, arr, strict=True)
+                       if not np.isfinite(row).all()]
+                raise ValueError(f"actions must be finite; NaN or inf from {bad}")
+        else:
+            arr = np.stack([as_velocities(v, f"action of {a}", (2,))
+                            for a, v in zip(self.agents, values, strict=True)])
+        return clip_speed(arr, self.episode_config.world.max_speed)
 
     def _observe(self) -> npt.NDArray[np.float32]:
         assert self._world is not None
@@ -286,12 +280,18 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         return self._rng
 
     def state(self) -> np.ndarray:
-        """Global state: positions (N·2) then velocities (N·2), the leader first, float32."""
+        """Global state: positions (N·2) then velocities (N·2), the leader first, float32.
+        Positions are exact (the physics keeps every robot inside the arena); velocities are
+        clipped to ±velocity_bound like the observations'."""
         world = self._require_world()
-        h = self.episode_config.world.arena_half_size
         vb = self.episode_config.observation.velocity_bound
-        return np.concatenate([np.clip(world.positions, -h, h).ravel(),
+        return np.concatenate([world.positions.ravel(),
                                np.clip(world.velocities, -vb, vb).ravel()]).astype(np.float32)
+
+    def __copy__(self) -> BoidsEnv:
+        """An independent copy (as :func:`copy.deepcopy`): a copy sharing the source's
+        world, random stream or counters would corrupt both."""
+        return copy.deepcopy(self)
 
     def snapshot(self) -> Snapshot:
         """The world's current arrays (copies): positions, velocities, commands, contacts."""
@@ -375,27 +375,32 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                 self._world.step(command)
 
 
-def _numeric(value: Any) -> bool:
-    try:
-        np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        return False
-    return True
-
-
 def parallel_env(render_mode: str | None = None, **kwargs: Any) -> BoidsEnv:
     """The parallel env; keyword arguments are config fields by flat name (``robots=19``)."""
     return BoidsEnv(render_mode=render_mode, **kwargs)
 
 
+class BoidsAECWrapper(parallel_to_aec_wrapper):
+    """PettingZoo's parallel-to-AEC conversion, checking each action when it is given: the
+    conversion caches actions until the last agent's, so a bad one would otherwise stay cached
+    (and fail every later step) after the error."""
+
+    def step(self, action: Any) -> None:
+        agent = self.agent_selection
+        live = not (self.terminations.get(agent) or self.truncations.get(agent))
+        if live:
+            as_velocities(action, f"action of {agent}", (2,))
+        super().step(action)
+
+
 def raw_env(render_mode: str | None = None, **kwargs: Any) -> Any:
     """The AEC version of :func:`parallel_env` without PettingZoo's order-enforcing wrapper."""
-    return parallel_to_aec_wrapper(parallel_env(render_mode=render_mode, **kwargs))
+    return BoidsAECWrapper(parallel_env(render_mode=render_mode, **kwargs))
 
 
 def env(render_mode: str | None = None, **kwargs: Any) -> Any:
-    """The AEC version (``parallel_to_aec``: order-enforcing) of :func:`parallel_env`."""
-    return parallel_to_aec(parallel_env(render_mode=render_mode, **kwargs))
+    """The AEC version (PettingZoo's order-enforcing wrapper over :func:`raw_env`)."""
+    return OrderEnforcingWrapper(raw_env(render_mode=render_mode, **kwargs))
 
 
-__all__ = ["REWARD_INFO_KEYS", "BoidsEnv", "env", "parallel_env", "raw_env"]
+__all__ = ["REWARD_INFO_KEYS", "BoidsAECWrapper", "BoidsEnv", "env", "parallel_env", "raw_env"]

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.config import scene_matrix
+from boids_env.config import CURVE_SPEED_FACTOR, LEADER_MAX_SPEED, scene_matrix
+from boids_env.vectors import as_velocities, clip_speed
 
 if TYPE_CHECKING:
     from boids_env.config import ScenarioConfig
@@ -170,9 +171,7 @@ class CurveLeader(Leader):
         here = self._point(s)
         tangent = (ahead - here) / max(np.linalg.norm(ahead - here), 1e-12)
         out = self.speed * tangent + self.gain * (here - position)
-        norm = np.linalg.norm(out)
-        limit = 1.5 * self.speed
-        return out * (limit / norm) if norm > limit else out
+        return clip_speed(out, CURVE_SPEED_FACTOR * self.speed)
 
     @property
     def nominal_duration(self) -> float:
@@ -194,12 +193,10 @@ class ExternalLeader(Leader):
         self._command = np.zeros(2)
 
     def set_command(self, velocity: npt.ArrayLike) -> None:
-        """Sets the velocity (m/s) used from the next step on; its speed is capped at 2 m/s."""
-        v = np.asarray(velocity, dtype=float)
-        if v.shape != (2,) or not np.all(np.isfinite(v)):
-            raise ValueError(f"leader velocity must be 2 finite numbers (m/s), got {velocity!r}")
-        norm = float(np.linalg.norm(v))
-        self._command = v * (2.0 / norm) if norm > 2.0 else v
+        """Sets the velocity (m/s) used from the next step on; its speed is capped at
+        ``LEADER_MAX_SPEED`` (2 m/s)."""
+        v = as_velocities(velocity, "leader velocity", (2,))
+        self._command = clip_speed(v, LEADER_MAX_SPEED)
 
     def command(self, t: float, position: Vec) -> Vec:
         if t < self.startup_time - 1e-9:

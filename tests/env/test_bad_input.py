@@ -14,7 +14,8 @@ from boids_env.recording import Recording
     ("robots", 1, r"\[2, 10000\]"), ("robots", 13.5, "integer"), ("robots", True, "integer"),
     ("leader_speed", 0.0, r"\(0.0, 2.0\] m/s"), ("leader_speed", float("nan"), "m/s"),
     ("leader_speed", "fast", "number"), ("robot_radius", -0.01, "m"),
-    ("robot_mass", 0, "kg"), ("dt", 2.0, "s"), ("substeps", 0, r"\[1, 1000\]"),
+    ("robot_mass", 0, "kg"), ("robot_mass", 1e-20, r"\[0.001, 100\] kg"), ("dt", 2.0, "s"),
+    ("substeps", 0, r"\[1, 1000\]"),
     ("horizon", 0.0, "m"), ("neighbours", -1, r"\[0, 1024\]"), ("path", "spiral", "square"),
     ("init_jitter", 0.5, "m"), ("separation_threshold", -1, "m"),
     ("alignment_threshold_deg", 400, "degrees"), ("wrap_alignment", "yes", "True or False"),
@@ -57,6 +58,10 @@ BAD_ACTIONS = [
     (lambda e: {**good(e), "follower_9": np.zeros(2)}, KeyError, "follower_9"),
     (lambda e: {a: v for a, v in good(e).items() if a != "follower_3"}, KeyError, "follower_3"),
     (lambda e: [np.zeros(2)] * 4, TypeError, "dict"),
+    (lambda e: {**good(e), "follower_1": [True, 0.1]}, ValueError, "real numbers"),
+    (lambda e: {**good(e), "follower_1": ["0.1", 0.2]}, ValueError, "real numbers"),
+    (lambda e: {**good(e), "follower_1": np.array([1 + 2j, 0])}, ValueError, "real numbers"),
+    (lambda e: {**good(e), "follower_1": np.array([True, False])}, ValueError, "real numbers"),
 ]
 
 
@@ -150,3 +155,84 @@ def test_unreadable_recording(tmp_path):
         Recording.from_parquet(junk)
     with pytest.raises(FileNotFoundError):
         Recording.from_parquet(tmp_path / "missing.parquet")
+
+
+def test_huge_finite_actions_keep_their_direction():
+    e = stepped_env(0)
+    e.step({"follower_1": np.array([1e155, 0.0]), "follower_2": [0.0, -1e308],
+            "follower_3": np.array([1e308, 1e308]), "follower_4": np.array([1e-300, 0.0])})
+    cmd = e.snapshot().commanded[1:]
+    np.testing.assert_allclose(cmd[:3], [[0.5, 0.0], [0.0, -0.5],
+                                         [0.5 / np.sqrt(2), 0.5 / np.sqrt(2)]])
+    assert cmd[3].tolist() == [1e-300, 0.0]
+
+
+def test_huge_external_leader_command_keeps_its_direction():
+    e = parallel_env(robots=2, path="external", startup_time=0)
+    e.reset(seed=0)
+    e.set_leader_command([-1e200, 0.0])
+    e.step({"follower_1": np.zeros(2)})
+    np.testing.assert_allclose(e.snapshot().commanded[0], [-2.0, 0.0])
+    for bad in ([True, 0.0], ["1", 0], [np.nan, 0]):
+        with pytest.raises(ValueError, match="leader velocity"):
+            e.set_leader_command(bad)
+
+
+@pytest.mark.parametrize("fields, message", [
+    ({"robot_radius": 0.3, "layout_spacing": 0.1, "arena_half_size": 20},
+     "initial robots could overlap"),
+    ({"layout_spacing": 0.15, "init_jitter": 0.05}, "layout_spacing"),
+    ({"drive_force": 1000.0}, r"drive_force / robot_mass must be at most 100"),
+    ({"max_speed": 5.0, "drive_force": 10.0}, "substeps >= 14"),
+    ({"dt": 0.5, "substeps": 1}, "dt / substeps too coarse"),
+    ({"collision_slop": 0.01}, "collision_slop must be at most a quarter of robot_radius"),
+    ({"separation_threshold": 3.0}, "below cohesion_threshold"),
+    ({"path_rotation": 45}, "path_rotation=45"),
+])
+def test_physically_meaningless_combinations_are_refused(fields, message):
+    with pytest.raises(ValueError, match=message):
+        parallel_env(**fields)
+
+
+def test_copy_copy_is_an_independent_env():
+    import copy
+
+    e = stepped_env(30)
+    c = copy.copy(e)
+    c.step(good(c))
+    assert e.episode_metrics()["steps"] == 30 and c.episode_metrics()["steps"] == 31
+    assert e.snapshot().time == pytest.approx(3.0)
+    twin = stepped_env(30)
+    np.testing.assert_array_equal(e.step(good(e))[0]["follower_1"],
+                                  twin.step(good(twin))[0]["follower_1"])
+
+
+def test_aec_refuses_a_bad_action_when_given_and_caches_nothing():
+    from boids_env import env as aec_env
+
+    a = aec_env(robots=3)
+    a.reset(seed=0)
+    with pytest.raises(ValueError, match="follower_1"):
+        a.step(np.array([np.nan, 0.0]))
+    a.step(np.array([0.1, 0.0]))  # the same agent again: nothing bad was cached
+    a.step(np.array([0.1, 0.0]))
+    assert a.agent_selection == "follower_1"
+
+
+def test_resets_allocate_no_new_pymunk_buffers(monkeypatch):
+    import pymunk.batch
+
+    e = parallel_env(robots=7)
+    e.reset(seed=0)
+    made = []
+    original = pymunk.batch.Buffer.__init__
+
+    def counting(self):
+        made.append(1)
+        original(self)
+
+    monkeypatch.setattr(pymunk.batch.Buffer, "__init__", counting)
+    for seed in range(50):
+        e.reset(seed=seed)
+        e.step(good(e))
+    assert made == [], f"{len(made)} buffers made over 50 resets (pymunk never frees them)"
