@@ -6,7 +6,7 @@ import copy
 import warnings
 from collections.abc import Mapping
 from dataclasses import fields
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -23,6 +23,20 @@ from boids_env.vectors import as_velocities, clip_speed
 from boids_env.world import Snapshot, World
 
 AgentID = str
+
+
+class ArrayStep(NamedTuple):
+    """What :meth:`BoidsEnv.step_arrays` returns, one row (or column) per follower."""
+
+    observations: npt.NDArray[np.float32]
+    """(F, D) the next observations."""
+    rewards: npt.NDArray[np.float64]
+    """(F,) the rewards (the sum of ``terms``)."""
+    terms: npt.NDArray[np.float64]
+    """(6, F) the reward terms in ``REWARD_INFO_KEYS`` order."""
+    truncated: bool
+    """The episode ended (all followers are truncated together; there is no termination)."""
+
 REWARD_INFO_KEYS = ("reward_separation", "reward_cohesion", "reward_alignment",
                     "reward_proximity", "reward_contact", "reward_wall")
 """The per-term rewards every follower's info holds, after reset and after every step: the
@@ -142,6 +156,16 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     # ------------------------------------------------------------------------------ reset
     def reset(self, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[dict[AgentID, np.ndarray], dict[AgentID, dict[str, Any]]]:
+        obs = self.reset_arrays(seed, options)
+        # The same info keys as step()'s, so clients that build their spec from reset
+        # (TorchRL, BenchMARL) keep the reward terms.
+        zero = dict.fromkeys(REWARD_INFO_KEYS, 0.0)
+        return dict(zip(self.agents, obs, strict=True)), {a: dict(zero) for a in self.agents}
+
+    def reset_arrays(self, seed: int | None = None, options: dict[str, Any] | None = None
+                     ) -> npt.NDArray[np.float32]:
+        """:meth:`reset` without dicts: the observations (F, D), one row per follower in
+        ``possible_agents`` order. Same state, same seeding, same checks."""
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
                                  or seed < 0):
             raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
@@ -169,10 +193,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         obs = self._observe()
         if self.render_mode == "human":
             self.render()
-        # The same info keys as step()'s, so clients that build their spec from reset
-        # (TorchRL, BenchMARL) keep the reward terms.
-        zero = dict.fromkeys(REWARD_INFO_KEYS, 0.0)
-        return dict(zip(self.agents, obs, strict=True)), {a: dict(zero) for a in self.agents}
+        return obs
 
     def _episode_config(self, options: Mapping[str, Any] | None) -> EnvConfig:
         if options is None:
@@ -201,9 +222,43 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                 raise RuntimeError("the episode has ended (every follower is truncated); call "
                                    "reset() before stepping again")
             return {}, {}, {}, {}, {}
-        commands = self._observer.to_world(self._parse_actions(actions))
+        agents = self.agents
+        result = self._advance(self._parse_actions(actions))
+        infos = {a: dict(zip(REWARD_INFO_KEYS, col, strict=True))
+                 for a, col in zip(agents, result.terms.T.tolist(), strict=True)}
+        return (dict(zip(agents, result.observations, strict=True)),
+                dict(zip(agents, result.rewards.tolist(), strict=True)),
+                dict.fromkeys(agents, False), dict.fromkeys(agents, result.truncated), infos)
+
+    def step_arrays(self, actions: npt.ArrayLike) -> ArrayStep:
+        """:meth:`step` without dicts, for vectorised trainers: ``actions`` (F, 2), one row per
+        follower in ``possible_agents`` order. The same code as :meth:`step` underneath (the
+        results are bit-identical); the same checks (a clear error for a wrong shape, dtype or
+        a NaN/inf, and after the episode ended), and the same state afterwards."""
+        if self._world is None:
+            raise RuntimeError("step_arrays() called before reset(); call reset() first")
+        if not self.agents:
+            raise RuntimeError("the episode has ended (every follower is truncated); call "
+                               "reset() before stepping again")
+        arr = np.asarray(actions)
+        shape = (len(self.agents), 2)
+        if arr.dtype.kind not in "iuf" or arr.shape != shape:
+            raise ValueError(f"actions must be a real array of shape {shape} (vx, vy per "
+                             f"follower, m/s), got dtype {arr.dtype} and shape {arr.shape}")
+        arr = arr.astype(np.float64)
+        if not np.isfinite(arr).all():
+            bad = [a for a, row in zip(self.agents, arr, strict=True)
+                   if not np.isfinite(row).all()]
+            raise ValueError(f"actions must be finite; NaN or inf from {bad}")
+        return self._advance(clip_speed(arr, self.episode_config.world.max_speed))
+
+    def _advance(self, actions: npt.NDArray[np.float64]) -> ArrayStep:
+        """One control step from checked, speed-limited actions (F, 2) in the observation
+        frame: the physics, the metrics and rewards, the episode's end, the next
+        observations."""
+        commands = self._observer.to_world(actions)
         world, leader = self._world, self._leader
-        assert leader is not None
+        assert world is not None and leader is not None
         full = np.empty((len(commands) + 1, 2))
         full[0] = leader.command(world.time, world.positions[0])
         full[1:] = commands
@@ -213,25 +268,18 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded)
         stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])  # (3, F)
         self._counts += stacked
-        terms = self._reward_scale * stacked  # metrics.reward_terms, as one (3, F) array
+        terms = np.vstack([self._reward_scale * stacked,  # metrics.reward_terms as one array
+                           self._safety_terms(world.positions)])  # (6, F)
         if self._finish_step is None and leader.finished:
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
             self._finish_step is not None and world.steps >= self._finish_step + self._tail_steps)
-        terms = np.vstack([terms, self._safety_terms(world.positions)])  # (6, F)
-        agents = self.agents
-        obs = self._observe()
-        reward = terms.sum(axis=0).tolist()
-        columns = terms.T.tolist()
-        infos = {a: dict(zip(REWARD_INFO_KEYS, col, strict=True))
-                 for a, col in zip(agents, columns, strict=True)}
-        out = (dict(zip(agents, obs, strict=True)), dict(zip(agents, reward, strict=True)),
-               dict.fromkeys(agents, False), dict.fromkeys(agents, done), infos)
+        result = ArrayStep(self._observe(), terms.sum(axis=0), terms, bool(done))
         if done:
             self.agents = []
         if self.render_mode == "human":
             self.render()
-        return out
+        return result
 
     def _safety_terms(self, positions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """The safety reward terms (3, F): −weight · flag · dt, zeros when no weight is set."""
@@ -403,4 +451,5 @@ def env(render_mode: str | None = None, **kwargs: Any) -> Any:
     return OrderEnforcingWrapper(raw_env(render_mode=render_mode, **kwargs))
 
 
-__all__ = ["REWARD_INFO_KEYS", "BoidsAECWrapper", "BoidsEnv", "env", "parallel_env", "raw_env"]
+__all__ = ["REWARD_INFO_KEYS", "ArrayStep", "BoidsAECWrapper", "BoidsEnv", "env", "parallel_env",
+           "raw_env"]

@@ -122,9 +122,9 @@ def nearest_neighbours(positions: FloatArray, horizon: float, k: int
         diff = positions[None, :, :] - positions[1:, None, :]
         dist = np.sqrt(np.einsum("fnd,fnd->fn", diff, diff))
         dist[(dist <= 0.0) | (dist > horizon)] = np.inf  # self (distance 0) and far robots
-        order = np.argsort(dist, axis=1, kind="stable")[:, :k]
-        nearest = dist[np.arange(followers)[:, None], order]
-        width = order.shape[1]
+        width = min(k, n)
+        order = np.argsort(dist, axis=1, kind="stable")[:, :width]
+        nearest = np.take_along_axis(dist, order, axis=1)
     else:
         # k + 1: the follower finds itself at distance 0 first.
         nearest, order = cKDTree(positions).query(positions[1:], k=k + 1,
@@ -137,12 +137,12 @@ def nearest_neighbours(positions: FloatArray, horizon: float, k: int
         nearest = np.take_along_axis(nearest, resort, axis=1)
         order = np.take_along_axis(order, resort, axis=1)
         width = k
-    index = np.where(np.isfinite(nearest), order, -1).astype(np.intp)
-    if width < k:  # fewer robots than slots
-        pad = k - width
-        index = np.pad(index, ((0, 0), (0, pad)), constant_values=-1)
-        nearest = np.pad(nearest, ((0, 0), (0, pad)), constant_values=np.inf)
-    return index, nearest
+    # Filled in place rather than padded (np.pad cost ~20 us a call, a third of a step).
+    index = np.full((followers, k), -1, dtype=np.intp)
+    distance = np.full((followers, k), np.inf)
+    index[:, :width] = np.where(np.isfinite(nearest), order, -1)
+    distance[:, :width] = nearest
+    return index, distance
 
 
 def rotation(heading: float) -> npt.NDArray[np.float64]:
@@ -189,7 +189,7 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
     obs[:, layout.leader_velocity] = table[0, 2:4]
     if layout.neighbours:
         index, _ = nearest_neighbours(positions, horizon, layout.neighbours)
-        gathered = table[np.where(index >= 0, index, n)]  # (F, K, 5)
+        gathered = table[index]  # (F, K, 5); an empty slot's -1 picks the all-zero last row
         # relative position; distances are <= horizon, so no clipping is needed
         gathered[..., 0:2] -= positions[1:, None, :] * gathered[..., 4:5]
         obs[:, layout.neighbours_start:] = gathered.reshape(followers, -1)

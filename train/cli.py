@@ -26,7 +26,12 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
                    help="follower-steps in all (PPO rounds up to whole rollouts)")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--copies", type=int, default=None, help="env copies stepped together")
-    p.add_argument("--processes", type=int, default=None, help="env worker processes")
+    p.add_argument("--processes", type=int, default=None,
+                   help="env worker processes (0: one per core from 3 cores on)")
+    p.add_argument("--torch-threads", type=int, default=None, dest="torch_threads",
+                   help="learner threads (0: every core)")
+    p.add_argument("--device", choices=("cpu", "cuda", "auto"), default=None,
+                   help="where the policy updates run (cpu)")
     p.add_argument("--group-sizes", type=int, nargs="+", default=None)
     p.add_argument("--leader-speeds", type=float, nargs="+", default=None)
     p.add_argument("--eval-every", type=int, default=None, help="timesteps (0: never)")
@@ -40,8 +45,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from boids_env.train.config import TrainConfig, resolve_recipe
 
     overrides = {name: getattr(args, name) for name in (
-        "algorithm", "total_timesteps", "seed", "copies", "processes", "eval_every",
-        "checkpoint_every")}
+        "algorithm", "total_timesteps", "seed", "copies", "processes", "torch_threads",
+        "device", "eval_every", "checkpoint_every")}
     overrides["group_sizes"] = tuple(args.group_sizes) if args.group_sizes else None
     overrides["leader_speeds"] = tuple(args.leader_speeds) if args.leader_speeds else None
     if args.config:

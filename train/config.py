@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
@@ -10,6 +11,7 @@ from typing import Any
 from boids_env.config import FIELD_OWNER, PATHS, check_integer, check_number
 
 ALGORITHMS = ("ppo", "sac")
+DEVICES = ("cpu", "cuda", "auto")
 RECIPES = Path(__file__).parent / "recipes"
 """The shipped training recipes (``boids train --config ppo_followers``)."""
 
@@ -49,9 +51,15 @@ class TrainConfig:
     """Each episode draws its leader speed from these (m/s)."""
     paths: tuple[str, ...] = ("square",)
     """Each episode draws its leader path from these."""
-    processes: int = 1
-    """Worker processes the env copies are split over (1: stepped in the training process)."""
-    torch_threads: int = 1
+    processes: int = 0
+    """Worker processes the env copies are split over (1: stepped in the training process;
+    0: one per core from 3 cores on, else 1; see ``vec_env.default_processes``)."""
+    torch_threads: int = 0
+    """Torch threads of the learner (forward passes and updates run while the env workers
+    wait, so they may use every core); 0: the number of cores."""
+    device: str = "cpu"
+    """Where the policy and its updates run: ``cpu`` (default), ``cuda``, or ``auto`` (cuda
+    when a GPU is present). The env always runs on the CPU."""
     env_fields: dict[str, Any] = field(default_factory=dict)
     """Other env config fields by flat name (e.g. ``{"neighbours": 6}``)."""
     # Hyperparameters shared by both algorithms.
@@ -91,8 +99,10 @@ class TrainConfig:
                                            lambda n, v: check_number(n, v, 0.0, 10.0,
                                                                      lo_open=True, unit="m/s")))
         _set(self, "paths", _tuple("paths", self.paths, _path))
-        _set(self, "processes", check_integer("processes", self.processes, 1, self.copies))
-        _set(self, "torch_threads", check_integer("torch_threads", self.torch_threads, 1, 256))
+        _set(self, "processes", check_integer("processes", self.processes, 0, self.copies))
+        _set(self, "torch_threads", check_integer("torch_threads", self.torch_threads, 0, 256))
+        if self.device not in DEVICES:
+            raise ValueError(f"device must be one of {DEVICES}, got {self.device!r}")
         if not isinstance(self.env_fields, dict):
             raise ValueError(f"env_fields must be a table of env config fields, got "
                              f"{self.env_fields!r}")
@@ -147,6 +157,18 @@ class TrainConfig:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
 
     # -------------------------------------------------------------------------- derived
+    def resolved_threads(self) -> int:
+        """``torch_threads``, or the number of cores when it is 0."""
+        return self.torch_threads or os.cpu_count() or 1
+
+    def resolved_device(self) -> str:
+        """``device`` with ``auto`` resolved (cuda if torch sees a GPU)."""
+        if self.device != "auto":
+            return self.device
+        import torch
+
+        return "cuda" if torch.cuda.is_available() else "cpu"
+
     def algorithm_kwargs(self) -> dict[str, Any]:
         """Keyword arguments for the SB3 algorithm's constructor."""
         common = {"learning_rate": self.learning_rate, "gamma": self.gamma,

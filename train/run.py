@@ -60,7 +60,10 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     if resume is not None and not Path(resume).is_file():
         raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
     out.mkdir(parents=True, exist_ok=True)
-    torch.set_num_threads(config.torch_threads)
+    torch.set_num_threads(config.resolved_threads())
+    device = config.resolved_device()
+    if device == "cuda" and not torch.cuda.is_available():
+        raise ValueError("device='cuda' but torch sees no GPU; use device='cpu' or 'auto'")
     (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
     meta = model_meta(config)
     venv = VecMonitor(make_vec_env(config))
@@ -71,10 +74,10 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
             if saved != config.algorithm:
                 raise ValueError(f"checkpoint {resume} was trained with {saved}, the config "
                                  f"says algorithm={config.algorithm!r}")
-            model = cls.load(resume, env=venv, device="cpu", tensorboard_log=str(out / "tb"))
+            model = cls.load(resume, env=venv, device=device, tensorboard_log=str(out / "tb"))
             model.set_random_seed(config.seed)
         else:
-            model = cls("MlpPolicy", venv, device="cpu", verbose=verbose,
+            model = cls("MlpPolicy", venv, device=device, verbose=verbose,
                         tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
         remaining = config.total_timesteps - (model.num_timesteps if resume else 0)
 

@@ -114,3 +114,32 @@ def test_bad_arguments_are_clear_errors():
             venv.seed(-1)
     finally:
         venv.close()
+
+
+def test_worker_processes_with_shared_memory_match_one_process_exactly():
+    from boids_env.train.vec_env import CopySpec, FlockVecEnv
+
+    specs = [CopySpec(5, (0.5, 0.6), env_fields={"max_cycles": 40}),
+             CopySpec(7, env_fields={"max_cycles": 40}),
+             CopySpec(4, env_fields={"max_cycles": 40})]
+    one, many = FlockVecEnv(specs, seed=3, processes=1), FlockVecEnv(specs, seed=3, processes=3)
+    try:
+        rng = np.random.default_rng(0)
+        np.testing.assert_array_equal(one.reset(), many.reset())
+        for step in range(90):  # crosses two episode ends (auto-reset)
+            act = rng.uniform(-0.5, 0.5, (one.num_envs, 2)).astype(np.float32)
+            a, b = one.step(act), many.step(act)
+            for x, y, name in zip(a[:3], b[:3], ("obs", "rewards", "dones"), strict=True):
+                np.testing.assert_array_equal(x, y, err_msg=f"step {step}: {name}")
+            assert [sorted(i) for i in a[3]] == [sorted(i) for i in b[3]], step
+    finally:
+        one.close()
+        many.close()
+
+
+def test_default_processes_follow_the_cores():
+    from boids_env.train.vec_env import default_processes
+
+    assert default_processes(6, cores=2) == 1
+    assert default_processes(6, cores=16) == 6
+    assert default_processes(32, cores=16) == 16
