@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import statistics
 import time
@@ -43,17 +44,19 @@ def timed(fn: Callable[[], int], repeats: int) -> dict[str, float]:
     return {"median": statistics.median(rates), "min": min(rates), "max": max(rates)}
 
 
-def env_loop(robots: int, steps: int, policy: str) -> Callable[[], int]:
+def env_loop(robots: int, steps: int, policy: str, api: str = "dict") -> Callable[[], int]:
+    """Steps of the env with ``random`` or ``reynolds`` actions through the PettingZoo dict
+    API (``dict``) or the array API (``arrays``)."""
     env = parallel_env(robots=robots, arena_half_size=arena_for(robots), path="external",
                        max_cycles=10**9)
     rng = np.random.default_rng(0)
     reynolds = ReynoldsPolicy(startup_time=0.0)
+    limit = env.config.world.max_speed
 
-    def run() -> int:
+    def run_dict() -> int:
         obs, _ = env.reset(seed=0)
         env.set_leader_command([0.3, 0.0])
         reynolds.reset(0)
-        limit = env.config.world.max_speed
         for _ in range(steps):
             if policy == "random":
                 acts = dict(zip(env.agents, rng.uniform(-limit, limit, (len(env.agents), 2)),
@@ -63,7 +66,17 @@ def env_loop(robots: int, steps: int, policy: str) -> Callable[[], int]:
             obs, *_ = env.step(acts)
         return steps
 
-    return run
+    def run_arrays() -> int:
+        obs = env.reset_arrays(seed=0)
+        env.set_leader_command([0.3, 0.0])
+        reynolds.reset(0)
+        for _ in range(steps):
+            acts = (rng.uniform(-limit, limit, (len(obs), 2)) if policy == "random"
+                    else reynolds.act_batch(obs))
+            obs = env.step_arrays(acts).observations
+        return steps
+
+    return run_dict if api == "dict" else run_arrays
 
 
 def physics_loop(robots: int, steps: int) -> Callable[[], int]:
@@ -96,51 +109,19 @@ def mpe_loop(agents: int, steps: int) -> Callable[[], int] | None:
     return run
 
 
-def paper_suite_seconds() -> float | None:
-    """Wall time of ``boids eval --suite paper`` for the Reynolds policy on 2 workers, from
-    scratch in a temporary folder (None without the eval extra)."""
-    import tempfile
-    import time
-
-    try:
-        from boids_env.eval.runner import PolicySpec, run_suite
-        from boids_env.eval.suites import PAPER
-    except ImportError:
-        return None
-    with tempfile.TemporaryDirectory() as tmp:
-        start = time.perf_counter()
-        run_suite([PolicySpec("reynolds")], PAPER, tmp, workers=2, progress=False)
-        return time.perf_counter() - start
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m boids_env.bench", description=__doc__)
-    parser.add_argument("--quick", action="store_true", help="fewer sizes and repeats")
-    parser.add_argument("--out", default="runs/bench/results.json",
-                        help="JSON output (runs/bench/results.json)")
-    args = parser.parse_args(argv)
-    repeats = 3 if args.quick else 5
-    sizes = [13, 19] if args.quick else [7, 13, 19, 100, 1000]
-    rows: list[dict[str, Any]] = []
-
-    def record(kind: str, n: int, agents: int, rate: dict[str, float]) -> None:
-        rows.append({"kind": kind, "robots": n, "env_steps_per_s": rate,
-                     "agent_steps_per_s": rate["median"] * agents})
-        print(f"{kind:<18} N={n:<5} {rate['median']:>10.0f} env-steps/s "
-              f"({rate['min']:.0f}–{rate['max']:.0f})  {rate['median'] * agents:>12.0f} "
-              f"agent-steps/s", flush=True)
-
+def _env_rows(sizes: list[int], repeats: int, record: Callable[..., None]) -> None:
     for n in sizes:
         steps = 400 if n <= 100 else 40
         record("physics", n, n, timed(physics_loop(n, steps), repeats))
         record("env random", n, n - 1, timed(env_loop(n, steps, "random"), repeats))
+        record("env random arrays", n, n - 1,
+               timed(env_loop(n, steps, "random", "arrays"), repeats))
         record("env reynolds", n, n - 1, timed(env_loop(n, steps, "reynolds"), repeats))
-    for n in [6, 12, 18] if not args.quick else [18]:
-        loop = mpe_loop(n, 200)
-        if loop is None:
-            print("mpe2 not installed (pip install 'boids-env[bench]'): MPE2 skipped")
-            break
-        record("mpe2 simple_spread", n, n, timed(loop, repeats))
+        record("env reynolds arrays", n, n - 1,
+               timed(env_loop(n, steps, "reynolds", "arrays"), repeats))
+
+
+def _ratios(rows: list[dict[str, Any]]) -> dict[str, float]:
     by_kind = {(r["kind"], r["robots"]): r["env_steps_per_s"]["median"] for r in rows}
     ratios = {}
     if ("env random", 19) in by_kind and ("mpe2 simple_spread", 18) in by_kind:
@@ -149,15 +130,74 @@ def main(argv: Sequence[str] | None = None) -> int:
     if ("env random", 19) in by_kind:
         ratios["env_random_19_over_physics_19"] = (by_kind[("env random", 19)]
                                                    / by_kind[("physics", 19)])
-    for name, value in ratios.items():
-        print(f"{name:<32} {value:6.2f}")
-    suite_time = None if args.quick else paper_suite_seconds()
-    if suite_time is not None:
-        print(f"paper suite (45 episodes, Reynolds, 2 workers): {suite_time:.1f} s wall")
-    out = {"machine": {"python": platform.python_version(), "cpu": platform.processor() or
-                       platform.machine(), "cores": __import__("os").cpu_count()},
-           "results": rows, "ratios": ratios, "paper_suite_seconds": suite_time}
+    return ratios
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m boids_env.bench", description=__doc__)
+    parser.add_argument("--quick", action="store_true",
+                        help="13 and 19 robots, 3 repeats, no training/suite/episode rows")
+    parser.add_argument("--training", action="store_true",
+                        help="only the training throughput rows (1, 2, all cores)")
+    parser.add_argument("--out", default="runs/bench/results.json",
+                        help="JSON output (runs/bench/results.json)")
+    args = parser.parse_args(argv)
+    repeats = 3 if args.quick else 5
+    sizes = [13, 19] if args.quick else [7, 13, 19, 100, 1000]
+    rows: list[dict[str, Any]] = []
+    out: dict[str, Any] = {"machine": {"python": platform.python_version(),
+                                       "cpu": platform.processor() or platform.machine(),
+                                       "cores": os.cpu_count()}}
+
+    def record(kind: str, n: int, agents: int, rate: dict[str, float]) -> None:
+        rows.append({"kind": kind, "robots": n, "env_steps_per_s": rate,
+                     "agent_steps_per_s": rate["median"] * agents})
+        print(f"{kind:<20} N={n:<5} {rate['median']:>10.0f} env-steps/s "
+              f"({rate['min']:.0f}–{rate['max']:.0f})  {rate['median'] * agents:>12.0f} "
+              f"agent-steps/s", flush=True)
+
+    if not args.training:
+        _env_rows(sizes, repeats, record)
+        for n in [6, 12, 18] if not args.quick else [18]:
+            loop = mpe_loop(n, 200)
+            if loop is None:
+                print("mpe2 not installed (pip install 'boids-env[bench]'): MPE2 skipped")
+                break
+            record("mpe2 simple_spread", n, n, timed(loop, repeats))
+        out["results"] = rows
+        out["ratios"] = _ratios(rows)
+        for name, value in out["ratios"].items():
+            print(f"{name:<32} {value:6.2f}")
+    if not args.quick:
+        _slow_rows(out, training_only=args.training)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=2))
     print(f"wrote {args.out}")
     return 0
+
+
+def _slow_rows(out: dict[str, Any], training_only: bool) -> None:
+    """Training scaling, learned-vs-Reynolds episode cost and the paper suite (they need the
+    train and eval extras; skipped with a note without them)."""
+    from boids_env.bench import training
+    from boids_env.extras import missing
+
+    if missing("train"):
+        print("train extra not installed: training and learned-policy rows skipped")
+    else:
+        out["training"] = training.training_scaling()
+        for row in out["training"]:
+            print(f"training on {row['cores']:>2} cores ({row['processes']} env processes, "
+                  f"{row['copies']} copies, {row['torch_threads']} threads, {row['device']}): "
+                  f"{row['follower_steps_per_s']:,.0f} follower-steps/s = {row['ratio']:.2f}× "
+                  f"the env's raw {row['raw_env_agent_steps_per_s']:,.0f}", flush=True)
+        if not training_only:
+            out["episode_seconds"] = costs = training.episode_costs()
+            print(f"one default episode: Reynolds {costs['reynolds']:.3f} s, learned "
+                  f"{costs['learned']:.3f} s ({costs['learned_over_reynolds']:.2f}×)")
+    if not training_only:
+        suite = training.paper_suite_seconds()
+        out["paper_suite_seconds"] = suite
+        if suite is not None:
+            print(f"paper suite (35 distinct episodes, Reynolds, {suite['workers']} workers): "
+                  f"{suite['episodes']:.1f} s episodes + {suite['report']:.1f} s report")

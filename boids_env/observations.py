@@ -111,8 +111,10 @@ def nearest_neighbours(positions: FloatArray, horizon: float, k: int
         k: number of slots.
 
     Returns:
-        ``(index, distance)`` of shape (N-1, k): robot indices nearest first (ties by index),
-        -1 and ``inf`` in empty slots.
+        ``(index, distance)`` of shape (N-1, k): robot indices nearest first (exact ties by
+        index below ``KD_TREE_MIN_ROBOTS`` robots, in the KD-tree's order above), -1 and
+        ``inf`` in empty slots. Robots at distance 0 (a follower itself, or one exactly on it)
+        are never neighbours.
     """
     n = len(positions)
     followers = n - 1
@@ -126,16 +128,19 @@ def nearest_neighbours(positions: FloatArray, horizon: float, k: int
         order = np.argsort(dist, axis=1, kind="stable")[:, :width]
         nearest = np.take_along_axis(dist, order, axis=1)
     else:
-        # k + 1: the follower finds itself at distance 0 first.
+        # k + 1: the follower finds itself at distance 0 first. The query's rows are sorted,
+        # so the zero distances (itself, and any robot exactly on it, which the all-pairs
+        # branch excludes too) lead each row: skip them instead of sorting again.
         nearest, order = cKDTree(positions).query(positions[1:], k=k + 1,
                                                   distance_upper_bound=horizon * (1 + 1e-12))
         nearest = np.asarray(nearest).reshape(followers, k + 1)
         order = np.asarray(order).reshape(followers, k + 1)
-        bad = (nearest <= 0.0) | (nearest > horizon)
-        nearest = np.where(bad, np.inf, nearest)
-        resort = np.argsort(nearest, axis=1, kind="stable")[:, :k]
-        nearest = np.take_along_axis(nearest, resort, axis=1)
-        order = np.take_along_axis(order, resort, axis=1)
+        leading = (nearest <= 0.0).sum(axis=1)
+        cols = np.minimum(leading[:, None] + np.arange(k), k)
+        nearest = np.take_along_axis(nearest, cols, axis=1)
+        order = np.take_along_axis(order, cols, axis=1)
+        beyond = (leading[:, None] + np.arange(k) > k) | (nearest > horizon)
+        nearest = np.where(beyond, np.inf, nearest)
         width = k
     # Filled in place rather than padded (np.pad cost ~20 us a call, a third of a step).
     index = np.full((followers, k), -1, dtype=np.intp)

@@ -21,12 +21,16 @@ from boids_env.train.config import TrainConfig
 from boids_env.train.vec_env import CopySpec, FlockVecEnv
 
 
-def make_vec_env(config: TrainConfig) -> FlockVecEnv:
-    """The VecEnv of a run: ``copies`` env copies, group sizes assigned round robin."""
+def copy_specs(config: TrainConfig) -> list[CopySpec]:
+    """The env copies of a run: ``copies`` of them, group sizes assigned round robin."""
     sizes = config.group_sizes
-    specs = [CopySpec(sizes[i % len(sizes)], config.leader_speeds, config.paths,
-                      dict(config.env_fields)) for i in range(config.copies)]
-    return FlockVecEnv(specs, seed=config.seed, processes=config.processes)
+    return [CopySpec(sizes[i % len(sizes)], config.leader_speeds, config.paths,
+                     dict(config.env_fields)) for i in range(config.copies)]
+
+
+def make_vec_env(config: TrainConfig) -> FlockVecEnv:
+    """The VecEnv of a run over :func:`copy_specs`."""
+    return FlockVecEnv(copy_specs(config), seed=config.seed, processes=config.processes)
 
 
 def model_meta(config: TrainConfig) -> dict[str, Any]:

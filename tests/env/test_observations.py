@@ -26,6 +26,22 @@ def test_neighbours_match_brute_force(n):
     assert np.all(np.diff(dist, axis=1)[np.isfinite(dist[:, 1:])] >= 0), "nearest first"
 
 
+def test_kdtree_skips_robots_on_top_of_each_other_like_all_pairs(monkeypatch):
+    pos = np.random.default_rng(1).uniform(-1, 1, (30, 2))
+    pos[5] = pos[3]  # two followers at the same point: neither is the other's neighbour
+    pos[7] = pos[3]
+    a = ob.nearest_neighbours(pos, 0.6, 25)  # more slots than neighbours in reach
+    monkeypatch.setattr(ob, "KD_TREE_MIN_ROBOTS", 2)
+    b = ob.nearest_neighbours(pos, 0.6, 25)
+    np.testing.assert_array_equal(a[0], brute_neighbours(pos, 0.6, 25))
+    # the same neighbours at the same distances (robots 3, 5, 7 tie: the KD-tree may order
+    # exact ties differently)
+    np.testing.assert_allclose(a[1], b[1])
+    assert [sorted(r) for r in a[0]] == [sorted(r) for r in b[0]]
+    for i in (3, 5, 7):
+        assert not {3, 5, 7} - {i} & set(b[0][i - 1]), f"robot {i} sees a robot on top of it"
+
+
 def test_kdtree_and_all_pairs_agree(monkeypatch):
     pos = np.random.default_rng(0).uniform(-3, 3, (60, 2))
     a = ob.nearest_neighbours(pos, 1.0, 10)

@@ -1,0 +1,138 @@
+"""Benchmarks of what users wait for beyond the env itself: training throughput against the
+env's raw speed (for 1, 2 and all cores), a learned-policy episode against a Reynolds one, and
+the paper suite split into its episodes and its report."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from typing import Any
+
+import numpy as np
+
+
+def raw_env_rate(config: Any, steps: int = 300) -> float:
+    """Agent-steps/s of the recipe's env copies stepped in one process with random actions
+    (the array API, no learner): the ceiling training is measured against."""
+    from boids_env.train.run import copy_specs
+    from boids_env.train.vec_env import _Shard
+
+    shard = _Shard(copy_specs(config))
+    shard.seed(np.random.SeedSequence(config.seed).spawn(len(shard.envs)))
+    shard.reset()
+    slots = sum(shard.sizes)
+    actions = np.random.default_rng(0).uniform(-0.5, 0.5, (20, slots, 2)).astype(np.float32)
+    shard.step(actions[0])
+    start = time.perf_counter()
+    for k in range(steps):
+        shard.step(actions[k % 20])
+    rate = steps * slots / (time.perf_counter() - start)
+    shard.close()
+    return rate
+
+
+def training_rate(config: Any, rollouts: int = 3) -> dict[str, Any]:
+    """Follower-steps/s of PPO on ``config`` (after one warm-up rollout), with the learner's
+    threads, processes and device the config resolves to."""
+    import torch
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from boids_env.policies.sb3_policy import algorithm_class
+    from boids_env.train.run import make_vec_env
+    from boids_env.train.vec_env import default_processes
+
+    torch.set_num_threads(config.resolved_threads())
+    venv = VecMonitor(make_vec_env(config))
+    try:
+        cls = algorithm_class(config.algorithm)
+        model = cls("MlpPolicy", venv, device=config.resolved_device(),
+                    **config.algorithm_kwargs())
+        chunk = config.n_steps * venv.num_envs
+        model.learn(chunk)
+        start = time.perf_counter()
+        model.learn(rollouts * chunk, reset_num_timesteps=False)
+        seconds = time.perf_counter() - start
+    finally:
+        venv.close()
+    return {"processes": config.processes or default_processes(config.copies),
+            "torch_threads": config.resolved_threads(), "device": config.resolved_device(),
+            "copies": config.copies, "follower_steps_per_s": rollouts * chunk / seconds}
+
+
+def training_scaling(recipe: str = "ppo_followers", cores: list[int] | None = None
+                     ) -> list[dict[str, Any]]:
+    """Training throughput of ``recipe`` on 1, 2 and all cores, each beside the raw env rate
+    of the same copies. A setting of n cores pins its process (and the env workers it
+    starts) to n cores and uses the defaults a machine of n cores gets: worker processes
+    from ``default_processes`` (copies raised to at least that many) and n learner threads.
+    Each runs in a fresh process so torch's thread pool starts clean."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    total = os.cpu_count() or 1
+    cores = cores or sorted({1, min(2, total), total})
+    rows = []
+    for n in cores:  # not a Pool: its daemonic workers could not start env workers
+        with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
+            rows.append(pool.submit(_scaling_row, recipe, n).result())
+    return rows
+
+
+def _scaling_row(recipe: str, cores: int) -> dict[str, Any]:
+    from boids_env.train.config import TrainConfig, resolve_recipe
+    from boids_env.train.vec_env import default_processes
+
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, sorted(os.sched_getaffinity(0))[:cores])
+    config = TrainConfig.from_toml(resolve_recipe(recipe))
+    processes = default_processes(max(config.copies, cores), cores)
+    config = config.replace(copies=max(config.copies, processes), processes=processes,
+                            torch_threads=cores, eval_every=0, checkpoint_every=0)
+    row = training_rate(config)
+    row["cores"] = cores
+    row["raw_env_agent_steps_per_s"] = raw_env_rate(config)
+    row["ratio"] = row["follower_steps_per_s"] / row["raw_env_agent_steps_per_s"]
+    return row
+
+
+def episode_costs(seeds: int = 3) -> dict[str, float]:
+    """Wall seconds of one default-case episode (best of ``seeds``) for the Reynolds policy and
+    the shipped learned policy, as ``boids run`` runs them (recording included)."""
+    from boids_env.environment import BoidsEnv
+    from boids_env.eval.episode import env_fields_for, run_episode
+    from boids_env.policies.registry import load_policy
+
+    out = {}
+    for spec in ("reynolds", "learned"):
+        policy = load_policy(spec)
+        env = BoidsEnv(**env_fields_for(policy))
+        run_episode(env, policy, 0)
+        times = []
+        for seed in range(seeds):
+            start = time.perf_counter()
+            run_episode(env, policy, seed)
+            times.append(time.perf_counter() - start)
+        out[spec] = min(times)
+    out["learned_over_reynolds"] = out["learned"] / out["reynolds"]
+    return out
+
+
+def paper_suite_seconds(workers: int | None = None) -> dict[str, float] | None:
+    """Wall seconds of ``boids eval --suite paper`` for the Reynolds policy from scratch in a
+    temporary folder, split into the episodes and the report (None without the eval extra)."""
+    try:
+        from boids_env.eval.report import build_report
+        from boids_env.eval.runner import PolicySpec, run_suite
+        from boids_env.eval.suites import PAPER
+    except ImportError:
+        return None
+    workers = workers or os.cpu_count() or 1
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        run_suite([PolicySpec("reynolds")], PAPER, tmp, workers=workers, progress=False)
+        episodes = time.perf_counter() - start
+        build_report(tmp)
+        report = time.perf_counter() - start - episodes
+    return {"workers": workers, "episodes": episodes, "report": report,
+            "total": episodes + report}
