@@ -9,14 +9,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
+from boids_env.checks import integer as _integer
+from boids_env.checks import number as _number
+from boids_env.checks import set_field as _set
 from boids_env.layout import follower_cells
+from boids_env.realism import RealismConfig
 
 FRAMES = ("world", "leader")
 """Observation (and action) frames: the study's world frame, or the leader's heading frame
@@ -29,37 +32,10 @@ PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "e
 """Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
 
 
-def _number(name: str, value: Any, lo: float, hi: float, *, lo_open: bool = False,
-            hi_open: bool = False, unit: str = "") -> float:
-    """Checks that ``value`` is a real number in the given interval and returns it as float."""
-    left, right = "(" if lo_open else "[", ")" if hi_open else "]"
-    allowed = f"{left}{lo}, {hi}{right}{(' ' + unit) if unit else ''}"
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a number in {allowed}, got {value!r}")
-    v = float(value)
-    below = v <= lo if lo_open else v < lo
-    above = v >= hi if hi_open else v > hi
-    if not math.isfinite(v) or below or above:
-        raise ValueError(f"{name} must be in {allowed}, got {value!r}")
-    return v
-
-
-def _integer(name: str, value: Any, lo: int, hi: int) -> int:
-    """Checks that ``value`` is an integer (numpy integers accepted) in [lo, hi]."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
-    if not lo <= int(value) <= hi:
-        raise ValueError(f"{name} must be in [{lo}, {hi}], got {value!r}")
-    return int(value)
-
-
+# The range checks live in boids_env.checks (shared with the realism section); these names are
+# kept for the other packages' configs (e.g. train.config).
 check_number = _number
-"""Public name of the range check, for other packages' configs (e.g. ``train.config``)."""
 check_integer = _integer
-
-
-def _set(obj: object, name: str, value: Any) -> None:
-    object.__setattr__(obj, name, value)
 
 
 @dataclass(frozen=True)
@@ -131,6 +107,10 @@ class ScenarioConfig:
     startup_time: float = 2.0
     """Time (s) the leader waits after reset before moving; the Reynolds followers hold still as
     long. Paper: 2.0 s."""
+    startup_hold: bool = False
+    """Hold every follower still (command zero) for ``startup_time`` whatever the policy
+    asks, as the study's controller did at its start-up. Off by default: the Reynolds policy
+    holds by itself; learned policies trained with it carry it in their env fields."""
     tail_time: float = 0.5
     """Time (s) the episode goes on after the leader finishes its path; 0.5 s makes the paper's
     case last 74.6 s, the study's T (the leader's own acceleration at the corners and the
@@ -166,6 +146,8 @@ class ScenarioConfig:
         _set(self, "arrival_margin", _number("arrival_margin", self.arrival_margin, 0.0, 1.0,
                                              lo_open=True, unit="m"))
         _set(self, "startup_time", _number("startup_time", self.startup_time, 0.0, 600, unit="s"))
+        if not isinstance(self.startup_hold, bool):
+            raise ValueError(f"startup_hold must be True or False, got {self.startup_hold!r}")
         _set(self, "tail_time", _number("tail_time", self.tail_time, 0.0, 600, unit="s"))
         if self.max_cycles is not None:
             _set(self, "max_cycles", _integer("max_cycles", self.max_cycles, 1, 10**9))
@@ -289,7 +271,7 @@ class MetricsConfig:
 
 
 _SECTIONS = {"world": WorldConfig, "scenario": ScenarioConfig, "observation": ObservationConfig,
-             "metrics": MetricsConfig}
+             "metrics": MetricsConfig, "realism": RealismConfig}
 FIELD_OWNER: dict[str, str] = {f.name: sec for sec, cls in _SECTIONS.items() for f in fields(cls)}
 """Which section owns each flat config name (``robots`` -> ``scenario``, ...)."""
 
@@ -306,6 +288,8 @@ class EnvConfig:
     scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
     observation: ObservationConfig = field(default_factory=ObservationConfig)
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
+    realism: RealismConfig = field(default_factory=RealismConfig)
+    """Opt-in ROS/Stage realism (:mod:`boids_env.realism`); off by default."""
 
     def __post_init__(self) -> None:
         for name, cls in _SECTIONS.items():

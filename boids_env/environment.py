@@ -19,6 +19,7 @@ from boids_env import metrics, scenario
 from boids_env.config import EnvConfig, ScenarioConfig
 from boids_env.leader import ExternalLeader, Leader, make_leader
 from boids_env.observations import Observer
+from boids_env.realism import Realism
 from boids_env.vectors import as_velocities, clip_speed
 from boids_env.world import Snapshot, World
 
@@ -41,8 +42,9 @@ REWARD_INFO_KEYS = ("reward_separation", "reward_cohesion", "reward_alignment",
                     "reward_proximity", "reward_contact", "reward_wall")
 """The per-term rewards every follower's info holds, after reset and after every step: the
 study's three, then the safety terms (0 unless ``reward="safe"`` or their weights are set)."""
-RESET_OPTIONS = tuple(f.name for f in fields(ScenarioConfig) if f.name != "robots")
-"""Scenario fields that ``reset(options=...)`` may change for one episode."""
+RESET_OPTIONS = (*(f.name for f in fields(ScenarioConfig) if f.name != "robots"), "obs_noise")
+"""Fields that ``reset(options=...)`` may change for one episode: the scenario's (not
+``robots``, which fixes the agents) and the sensing noise."""
 
 
 class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
@@ -182,10 +184,15 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
         self._tail_steps = round(sc.tail_time / wc.dt)
         self._finish_step: int | None = None
-        self._history: list[npt.NDArray[np.float64]] = []
+        self._history: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None]] = []
         self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)
         self._observer = Observer(episode)
         self._observer.reset(self._rng, self._leader.initial_heading)
+        self._realism: Realism | None = None
+        if episode.realism.active:  # its own stream, drawn only when on: defaults unchanged
+            self._realism = Realism(episode.realism, sc.robots, wc.dt, sc.startup_time,
+                                    wc.robot_radius, wc.max_speed,
+                                    np.random.default_rng(self._rng.integers(2**63)))
         self._reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
         self._safety_scale = -np.array(episode.metrics.safety_weights)[:, None] * wc.dt
         self.agents = list(self.possible_agents)
@@ -262,11 +269,19 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         commands = self._observer.to_world(actions)
         world, leader = self._world, self._leader
         assert world is not None and leader is not None
+        sc = self.episode_config.scenario
+        if sc.startup_hold and world.time < sc.startup_time - 1e-9:
+            commands = np.zeros_like(commands)
         full = np.empty((len(commands) + 1, 2))
         full[0] = leader.command(world.time, world.positions[0])
         full[1:] = commands
-        world.step(full)
-        self._history.append(world.commanded)
+        if self._realism is None:
+            world.step(full)
+            self._history.append((world.commanded, None))
+        else:
+            executed = self._realism.executed(full, world.positions, world.time)
+            world.step(full, executed)
+            self._history.append((world.commanded, executed))
         cfg = self.episode_config
         flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded)
         stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])  # (3, F)
@@ -319,7 +334,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
 
     def _observe(self) -> npt.NDArray[np.float32]:
         assert self._world is not None
-        return self._observer(self._world.positions, self._world.velocities)
+        obs = self._observer(self._world.positions, self._world.velocities)
+        return obs if self._realism is None else self._realism.observations(obs)
 
     # -------------------------------------------------------------------------- queries
     @property
@@ -422,8 +438,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self.__dict__.update(state)
         if replay:
             self._world = World(self.episode_config.world, self._initial_positions)
-            for command in self._history:
-                self._world.step(command)
+            for command, executed in self._history:
+                self._world.step(command, executed)
 
 
 def parallel_env(render_mode: str | None = None, **kwargs: Any) -> BoidsEnv:

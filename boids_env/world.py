@@ -139,12 +139,14 @@ class World:
         self.positions = data[: self.n, :2].copy()
         self.velocities = data[: self.n, 2:].copy()
 
-    def step(self, commanded: FloatArray) -> None:
-        """Commands every robot's velocity (N, 2) and advances one control period."""
+    def step(self, commanded: FloatArray, executed: FloatArray | None = None) -> None:
+        """Commands every robot's velocity (N, 2) and advances one control period. With
+        ``executed`` the robots track that instead (realism: noise, stall, latency) while
+        :attr:`commanded` keeps the command as sent."""
         self.commanded = np.array(commanded, dtype=float)
         w = self._write_velocities
         w[: self.n] = self.velocities  # unchanged: batch writes every body's velocity
-        w[self.n : 2 * self.n] = self.commanded
+        w[self.n : 2 * self.n] = self.commanded if executed is None else executed
         write = _buffers()[1]
         write.set_float_buf(w.reshape(-1))
         batch.set_space_bodies(self.space, batch.BodyFields.VELOCITY, write)

@@ -25,6 +25,8 @@ class EpisodeResult:
     frames: list[npt.NDArray[np.uint8]] = field(default_factory=list)
     wall_time: float = 0.0
     """Seconds the episode took (stepping, policy and recording; not the video encoding)."""
+    reward_total: float = 0.0
+    """The env's rewards summed over followers and steps (its configured reward)."""
 
 
 def env_fields_for(policy: Policy, fields: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -59,6 +61,7 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
     if recorder:
         recorder.capture(env)
     step = 0
+    reward_total = 0.0
     while env.agents:
         actions = policy.act(obs)
         forces = getattr(policy, "forces", None)
@@ -66,7 +69,8 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
             env.overlays = forces
         if frame_every and step % frame_every == 0:
             frames.append(env.render())
-        obs, *_ = env.step(actions)
+        obs, rewards, *_ = env.step(actions)
+        reward_total += sum(rewards.values())
         step += 1
         if recorder:
             recorder.capture(env)
@@ -74,4 +78,4 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
         frames.append(env.render())
     recording = recorder.recording(env, seed=seed) if recorder else None
     metrics = recording.metrics() if recording else env.episode_metrics()
-    return EpisodeResult(metrics, recording, frames, time.perf_counter() - start)
+    return EpisodeResult(metrics, recording, frames, time.perf_counter() - start, reward_total)

@@ -16,6 +16,8 @@ from boids_env.policies.sb3_policy import SB3Policy, write_meta
 from boids_env.train.vec_env import EPISODE_INFO
 
 V_KEYS = ("V_sep", "V_coh", "V_align")
+SAFETY = ("touching_fraction", "contacts_follower", "contacts_leader", "wall_fraction",
+          "mean_nn_distance")
 
 
 class TrainingMetricsCallback(BaseCallback):
@@ -45,8 +47,10 @@ class TrainingMetricsCallback(BaseCallback):
 
 class FlockEvalCallback(BaseCallback):
     """Every ``every`` timesteps, runs deterministic evaluation episodes of the current model
-    on the study's default case, logs ``eval/V_*`` and ``eval/total`` to TensorBoard, appends
-    them to ``evaluations.csv`` and saves ``best_model.zip`` when the total violation improves.
+    on the study's default case, logs ``eval/V_*``, ``eval/total`` (the study's three summed),
+    the safety metrics and ``eval/cost`` (−return / T, the training reward's own score: the
+    total for the study's reward, plus the safety terms for ``reward="safe"``) to TensorBoard,
+    appends them to ``evaluations.csv`` and saves ``best_model.zip`` when the cost improves.
     """
 
     def __init__(self, out: str | Path, every: int, seeds: Sequence[int],
@@ -70,10 +74,13 @@ class FlockEvalCallback(BaseCallback):
         """Runs the evaluation episodes now and records their mean V_*."""
         env = BoidsEnv(**self.env_fields)
         policy = SB3Policy(self.model)
-        runs = [run_episode(env, policy, seed, record=False).metrics for seed in self.seeds]
+        episodes = [run_episode(env, policy, seed, record=True) for seed in self.seeds]
         env.close()
-        result = {k: float(np.mean([m[k] for m in runs])) for k in V_KEYS}
+        runs = [e.metrics for e in episodes]
+        result = {k: float(np.mean([m[k] for m in runs])) for k in (*V_KEYS, *SAFETY)}
         result["total"] = sum(result[k] for k in V_KEYS)
+        result["cost"] = float(np.mean([-e.reward_total / e.metrics["duration"]
+                                        for e in episodes]))
         for key, value in result.items():
             self.logger.record(f"eval/{key}", value)
         path = self.out / "evaluations.csv"
@@ -83,8 +90,8 @@ class FlockEvalCallback(BaseCallback):
             if new:
                 writer.writerow(["timesteps", *result])
             writer.writerow([self.num_timesteps, *(f"{v:.6f}" for v in result.values())])
-        if result["total"] < self.best:
-            self.best = result["total"]
+        if result["cost"] < self.best:
+            self.best = result["cost"]
             if self.save_best is not None:
                 self.save_best(self.out / "best_model.zip")
         if self.verbose:

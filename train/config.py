@@ -51,6 +51,12 @@ class TrainConfig:
     """Each episode draws its leader speed from these (m/s)."""
     paths: tuple[str, ...] = ("square",)
     """Each episode draws its leader path from these."""
+    path_rotations: tuple[float, ...] = (0.0,)
+    """Each episode draws the rotation of its scene (path and layout, degrees) from these."""
+    path_mirrors: tuple[bool, ...] = (False,)
+    """Each episode draws whether its scene is mirrored from these."""
+    obs_noises: tuple[float, ...] = (0.0,)
+    """Each episode draws its sensing noise (std, m and m/s) from these."""
     processes: int = 0
     """Worker processes the env copies are split over (1: stepped in the training process;
     0: one per core from 3 cores on, else 1; see ``vec_env.default_processes``)."""
@@ -99,6 +105,12 @@ class TrainConfig:
                                            lambda n, v: check_number(n, v, 0.0, 10.0,
                                                                      lo_open=True, unit="m/s")))
         _set(self, "paths", _tuple("paths", self.paths, _path))
+        _set(self, "path_rotations", _tuple("path_rotations", self.path_rotations,
+                                            lambda n, v: check_number(n, v, -360, 360,
+                                                                      unit="degrees")))
+        _set(self, "path_mirrors", _tuple("path_mirrors", self.path_mirrors, _flag))
+        _set(self, "obs_noises", _tuple("obs_noises", self.obs_noises,
+                                        lambda n, v: check_number(n, v, 0.0, 10.0)))
         _set(self, "processes", check_integer("processes", self.processes, 0, self.copies))
         _set(self, "torch_threads", check_integer("torch_threads", self.torch_threads, 0, 256))
         if self.device not in DEVICES:
@@ -200,6 +212,12 @@ def _as_tuple(name: str, value: Any) -> tuple[Any, ...]:
 
 def _tuple(name: str, value: Any, check: Any) -> tuple[Any, ...]:
     return tuple(check(name, v) for v in _as_tuple(name, value))
+
+
+def _flag(name: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise ValueError(f"{name} entries must be true or false, got {value!r}")
+    return value
 
 
 def _path(name: str, value: Any) -> str:

@@ -24,8 +24,34 @@ from boids_env.train.vec_env import CopySpec, FlockVecEnv
 def copy_specs(config: TrainConfig) -> list[CopySpec]:
     """The env copies of a run: ``copies`` of them, group sizes assigned round robin."""
     sizes = config.group_sizes
+    choices = {name: values for name, values in (
+        ("path_rotation", config.path_rotations), ("path_mirror", config.path_mirrors),
+        ("obs_noise", config.obs_noises)) if values != (0.0,) and values != (False,)}
     return [CopySpec(sizes[i % len(sizes)], config.leader_speeds, config.paths,
-                     dict(config.env_fields)) for i in range(config.copies)]
+                     dict(config.env_fields), choices) for i in range(config.copies)]
+
+
+def check_episodes(config: TrainConfig) -> None:
+    """Builds the env config of every episode the run can draw (each group size, speed, path,
+    rotation, mirror and noise), so a combination the env refuses fails before anything is
+    written, naming the training field that holds it."""
+    from itertools import product
+
+    from boids_env.config import EnvConfig
+
+    base = EnvConfig.from_kwargs(**config.env_fields)
+    for combo in product(sorted(set(config.group_sizes)), config.leader_speeds, config.paths,
+                         config.path_rotations, config.path_mirrors, config.obs_noises):
+        robots, speed, path, turn, mirror, noise = combo
+        try:
+            base.replace(robots=robots, leader_speed=speed, path=path, path_rotation=turn,
+                         path_mirror=mirror, obs_noise=noise)
+        except (ValueError, TypeError) as exc:
+            raise ValueError(
+                f"the training config draws an episode the env refuses (group_sizes {robots}, "
+                f"leader_speeds {speed}, paths {path!r}, path_rotations {turn}, path_mirrors "
+                f"{mirror}, obs_noises {noise}, env_fields {config.env_fields}): {exc}"
+            ) from None
 
 
 def make_vec_env(config: TrainConfig) -> FlockVecEnv:
@@ -60,6 +86,7 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     """
     import torch
 
+    check_episodes(config)
     out = Path(out)
     if resume is not None and not Path(resume).is_file():
         raise FileNotFoundError(f"checkpoint to resume not found: {resume}")

@@ -46,6 +46,19 @@ class CopySpec:
     """Each episode's leader path is drawn uniformly from these."""
     env_fields: dict[str, Any] = field(default_factory=dict)
     """Other EnvConfig fields by flat name (e.g. ``max_cycles``)."""
+    choices: dict[str, tuple[Any, ...]] = field(default_factory=dict)
+    """More reset options drawn uniformly per episode, by name (``path_rotation``,
+    ``path_mirror``, ``obs_noise``, …), drawn in sorted name order after speed and path."""
+
+    def draw(self, rng: np.random.Generator) -> dict[str, Any]:
+        """One episode's reset options."""
+        options = {"leader_speed": float(self.leader_speeds[rng.integers(len(self.leader_speeds))]),
+                   "path": str(self.paths[rng.integers(len(self.paths))])}
+        for name in sorted(self.choices):
+            values = self.choices[name]
+            value = values[rng.integers(len(values))]
+            options[name] = value.item() if isinstance(value, np.generic) else value
+        return options
 
     def make(self) -> BoidsEnv:
         return BoidsEnv(robots=self.robots, **self.env_fields)
@@ -66,8 +79,7 @@ class _Shard:
 
     def _reset_copy(self, i: int) -> npt.NDArray[np.float32]:
         spec, rng, env = self.specs[i], self.rngs[i], self.envs[i]
-        options = {"leader_speed": float(spec.leader_speeds[rng.integers(len(spec.leader_speeds))]),
-                   "path": str(spec.paths[rng.integers(len(spec.paths))])}
+        options = spec.draw(rng)
         return env.reset_arrays(seed=int(rng.integers(2**31 - 1)), options=options)
 
     def reset(self) -> npt.NDArray[np.float32]:
