@@ -39,7 +39,9 @@ def test_model_zip_carries_metadata_and_loads_as_a_policy(tmp_path):
     assert (tmp_path / "best_model.zip").is_file()
     assert len(list((tmp_path / "checkpoints").glob("model_*_steps.zip"))) >= 1
     evals = (tmp_path / "evaluations.csv").read_text().splitlines()
-    assert evals[0] == "timesteps,V_sep,V_coh,V_align,total" and len(evals) >= 2
+    assert evals[0] == ("timesteps,V_sep,V_coh,V_align,touching_fraction,contacts_follower,"
+                        "contacts_leader,wall_fraction,mean_nn_distance,total,cost")
+    assert len(evals) >= 2
     assert json.loads((tmp_path / "config.json").read_text())["group_sizes"] == [4, 5]
     policy = load_policy(str(path))
     obs = np.zeros((3, 6 + 5 * 4), np.float32)
