@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from boids_env.checks import flag as _flag
 from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
@@ -183,6 +184,10 @@ class ObservationConfig:
     obs_noise: float = 0.0
     """Std of seeded Gaussian noise added to every observed position (m) and velocity (m/s);
     valid flags and empty slots stay exact. 0 (the study's exact sensing) by default."""
+    sense_walls: bool = False
+    """Append a wall slot: the offset (m) to the nearest point of the walls and a valid flag,
+    when a wall is within ``horizon`` (zeros otherwise). Opt-in: the study's followers sensed
+    only robots."""
     frame: str = "world"
     """Frame of observations and actions, one of FRAMES: ``world`` (the study's) or
     ``leader`` (x along the leader's heading, y to its left; opt-in, for policies that should
@@ -194,6 +199,7 @@ class ObservationConfig:
         _set(self, "velocity_bound", _number("velocity_bound", self.velocity_bound, 0.0, 100,
                                              lo_open=True, unit="m/s"))
         _set(self, "obs_noise", _number("obs_noise", self.obs_noise, 0.0, 10.0, unit="m, m/s"))
+        _set(self, "sense_walls", _flag("sense_walls", self.sense_walls))
         if self.frame not in FRAMES:
             raise ValueError(f"frame must be one of {FRAMES}, got {self.frame!r}")
 
@@ -201,7 +207,7 @@ class ObservationConfig:
 REWARDS = ("study", "safe")
 """Reward presets: ``study`` (the study's three violations only, the default) and ``safe``
 (adds penalties for crowding, contact and walls; see :data:`SAFE_WEIGHTS`)."""
-SAFE_WEIGHTS = {"reward_proximity": 0.5, "reward_contact": 2.0, "reward_wall": 1.0}
+SAFE_WEIGHTS = {"reward_proximity": 1.0, "reward_contact": 4.0, "reward_wall": 2.0}
 """Weights of the safety terms under ``reward="safe"`` (per step, × dt, like a violation)."""
 
 
@@ -233,9 +239,13 @@ class MetricsConfig:
     reward_contact: float | None = None
     """Weight of the penalty while a follower touches another robot; None: the preset's."""
     reward_wall: float | None = None
-    """Weight of the penalty while a follower touches a wall; None: the preset's."""
+    """Weight of the penalty while a follower's centre is within ``wall_distance`` of a wall;
+    None: the preset's."""
     safety_distance: float = 0.3
     """Centre distance (m) under which ``reward_proximity`` applies. Not in the study."""
+    wall_distance: float = 0.15
+    """Centre-to-wall distance (m) under which ``reward_wall`` applies (a robot touches at
+    its radius, 0.036 m). Not in the study."""
 
     def __post_init__(self) -> None:
         _set(self, "separation_threshold",
@@ -260,6 +270,8 @@ class MetricsConfig:
                 _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
         _set(self, "safety_distance", _number("safety_distance", self.safety_distance, 0.0, 10,
                                               lo_open=True, unit="m"))
+        _set(self, "wall_distance", _number("wall_distance", self.wall_distance, 0.0, 10,
+                                            unit="m"))
 
     @property
     def safety_weights(self) -> tuple[float, float, float]:

@@ -80,8 +80,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     return is −(V_sep + V_coh + V_align) · T (the default ``reward="study"``).
     ``reward="safe"`` adds −w·[flag]·dt per follower for ``reward_proximity`` (closer than
     ``safety_distance``, 0.3 m, to any other robot, the leader included), ``reward_contact``
-    (touching a robot) and ``reward_wall`` (touching a wall); these keys are always in the
-    infos (0 under the study's reward).
+    (touching a robot) and ``reward_wall`` (centre within ``wall_distance``, 0.15 m, of a
+    wall); these keys are always in the infos (0 under the study's reward).
 
     ## Starting State
     Leader at (0, 0), followers on the study's 0.5 m grid behind it with a seeded jitter of
@@ -306,7 +306,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             return np.zeros((3, len(positions) - 1))
         cfg = self.episode_config
         flags = metrics.safety_flags(positions, cfg.world.robot_radius,
-                                     cfg.world.arena_half_size, cfg.metrics.safety_distance)
+                                     cfg.world.arena_half_size, cfg.metrics.safety_distance,
+                                     max(cfg.metrics.wall_distance, cfg.world.robot_radius
+                                         + metrics.CONTACT_TOLERANCE))
         return scale * np.stack([flags[name] for name in metrics.SAFETY_FLAGS])
 
     def _parse_actions(self, actions: Mapping[AgentID, npt.ArrayLike]

@@ -262,18 +262,19 @@ def path_deviation(points: FloatArray, path: FloatArray) -> FloatArray:
 
 
 def safety_flags(positions: FloatArray, radius: float, arena_half_size: float,
-                 safety_distance: float, tolerance: float = CONTACT_TOLERANCE
-                 ) -> dict[str, BoolArray]:
+                 safety_distance: float, wall_distance: float | None = None,
+                 tolerance: float = CONTACT_TOLERANCE) -> dict[str, BoolArray]:
     """Per-follower safety flags at one instant (N, 2), the leader first: ``proximity``
     (centre distance to some other robot, the leader included, below ``safety_distance``),
-    ``contact`` (touching some other robot) and ``wall`` (touching a wall); each (N-1,)."""
+    ``contact`` (touching some other robot) and ``wall`` (centre closer than
+    ``wall_distance`` to a wall; None: touching one); each (N-1,)."""
     pos = np.asarray(positions, dtype=float)
     n = len(pos)
     if n > 1:
         nearest = cKDTree(pos).query(pos[1:], k=2)[0][:, 1]
     else:  # pragma: no cover - an env always has a follower
         nearest = np.zeros(0)
-    reach = arena_half_size - radius - tolerance
+    reach = arena_half_size - (radius + tolerance if wall_distance is None else wall_distance)
     return {"proximity": nearest < safety_distance,
             "contact": nearest < 2 * radius + tolerance,
             "wall": np.any(np.abs(pos[1:]) >= reach, axis=1)}

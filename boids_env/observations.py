@@ -46,6 +46,7 @@ INITIAL_HEADING = math.pi / 2
 of the study's square (the env passes its leader's own first direction)."""
 
 SLOT_SIZE = 5
+WALL_SIZE = 3
 KD_TREE_MIN_ROBOTS = 96
 """From this group size on, neighbours are found with a KD-tree instead of all pairs
 (measured: all-pairs wins below about 100 robots)."""
@@ -57,6 +58,8 @@ class ObservationLayout:
 
     neighbours: int
     """K, the number of neighbour slots."""
+    walls: bool = False
+    """Whether the wall slot follows the neighbour slots (``sense_walls``)."""
 
     own_velocity = slice(0, 2)
     leader_position = slice(2, 4)
@@ -66,12 +69,30 @@ class ObservationLayout:
     @property
     def size(self) -> int:
         """Length of one observation vector."""
-        return self.neighbours_start + SLOT_SIZE * self.neighbours
+        return self.neighbours_start + SLOT_SIZE * self.neighbours + WALL_SIZE * self.walls
+
+    @property
+    def wall(self) -> slice:
+        """The wall slot: offset (2) to the nearest point of the walls, valid flag (1)."""
+        if not self.walls:
+            raise ValueError("this layout has no wall slot (sense_walls=False)")
+        return slice(self.size - WALL_SIZE, self.size)
+
+    @classmethod
+    def for_size(cls, size: int) -> ObservationLayout:
+        """The layout of an observation vector of ``size`` (a wall slot of 3 never divides
+        into the 5-wide neighbour slots, so the size tells both)."""
+        rest = size - cls.neighbours_start
+        walls = rest % SLOT_SIZE == WALL_SIZE
+        if rest < 0 or rest % SLOT_SIZE not in (0, WALL_SIZE):
+            raise ValueError(f"no observation layout has size {size}")
+        return cls((rest - WALL_SIZE * walls) // SLOT_SIZE, walls)
 
     def slots(self, obs: FloatArray) -> FloatArray:
         """View of the neighbour slots of a batch ``(..., size)`` as ``(..., K, 5)``."""
-        return obs[..., self.neighbours_start:].reshape(*obs.shape[:-1], self.neighbours,
-                                                       SLOT_SIZE)
+        end = self.neighbours_start + SLOT_SIZE * self.neighbours
+        return obs[..., self.neighbours_start:end].reshape(*obs.shape[:-1], self.neighbours,
+                                                           SLOT_SIZE)
 
     @staticmethod
     def slot_position(slots: FloatArray) -> FloatArray:
@@ -95,9 +116,13 @@ class ObservationLayout:
         low[self.leader_position] = -2 * arena_half_size
         low[self.leader_velocity] = -velocity_bound
         slot_low = np.array([-horizon, -horizon, -velocity_bound, -velocity_bound, 0.0])
-        low[self.neighbours_start:] = np.tile(slot_low, self.neighbours)
+        end = self.neighbours_start + SLOT_SIZE * self.neighbours
+        low[self.neighbours_start:end] = np.tile(slot_low, self.neighbours)
         high = -low
-        high[self.neighbours_start + 4 :: SLOT_SIZE] = 1.0
+        high[self.neighbours_start + 4 : end : SLOT_SIZE] = 1.0
+        if self.walls:
+            low[self.wall] = [-horizon, -horizon, 0.0]
+            high[self.wall] = [horizon, horizon, 1.0]
         return spaces.Box(low, high, dtype=np.float32)
 
 
@@ -176,6 +201,7 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
     """
     n = len(positions)
     followers = n - 1
+    world_positions = positions
     if frame is not None:
         # Distances do not change under a rotation, so the neighbour search and its order are
         # the same; rotating the inputs rotates every vector of the observation.
@@ -197,8 +223,25 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         gathered = table[index]  # (F, K, 5); an empty slot's -1 picks the all-zero last row
         # relative position; distances are <= horizon, so no clipping is needed
         gathered[..., 0:2] -= positions[1:, None, :] * gathered[..., 4:5]
-        obs[:, layout.neighbours_start:] = gathered.reshape(followers, -1)
+        end = layout.neighbours_start + SLOT_SIZE * layout.neighbours
+        obs[:, layout.neighbours_start:end] = gathered.reshape(followers, -1)
+    if layout.walls:
+        offset = nearest_wall(world_positions[1:], arena_half_size)
+        near = np.linalg.norm(offset, axis=1) <= horizon
+        if frame is not None:
+            offset = offset @ frame
+        obs[:, layout.wall] = np.column_stack([offset * near[:, None], near])
     return obs
+
+
+def nearest_wall(positions: FloatArray, arena_half_size: float) -> FloatArray:
+    """Offset (m) from each position (F, 2) to the nearest point of the square arena's walls
+    (their inner faces at ±arena_half_size): along one axis, towards the closest wall."""
+    gaps = np.concatenate([arena_half_size - positions, arena_half_size + positions], axis=1)
+    side = np.argmin(gaps, axis=1)  # 0: +x wall, 1: +y, 2: -x, 3: -y
+    distance = gaps[np.arange(len(positions)), side]
+    direction = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])[side]
+    return direction * distance[:, None]
 
 
 class Observer:
@@ -215,7 +258,7 @@ class Observer:
     def __init__(self, config: EnvConfig) -> None:
         obs, world = config.observation, config.world
         self.config = config
-        self.layout = ObservationLayout(obs.neighbours)
+        self.layout = ObservationLayout(obs.neighbours, obs.sense_walls)
         self.space = self.layout.space(world.arena_half_size, obs.horizon, obs.velocity_bound)
         self.heading = INITIAL_HEADING
         self._rng: np.random.Generator | None = None
@@ -256,6 +299,11 @@ class Observer:
             valid = self.layout.slot_valid(self.layout.slots(obs))
             slots[..., :4] *= valid[..., None]
             slots[..., 4] = 0.0
+            if self.layout.walls:
+                wall = noise[:, self.layout.wall]
+                wall[:, :2] *= obs[:, self.layout.wall][:, 2:3]
+                wall[:, 2] = 0.0
+                noise[:, self.layout.wall] = wall
             obs = obs + noise
         if cfg.obs_noise > 0 or cfg.frame != "world":
             obs = np.clip(obs, self.space.low, self.space.high).astype(np.float32)

@@ -105,7 +105,7 @@ class ReynoldsPolicy(BatchPolicy):
 
     def act_batch(self, obs: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
         obs = np.asarray(obs, dtype=np.float64)
-        layout = ObservationLayout((obs.shape[1] - ObservationLayout.neighbours_start) // 5)
+        layout = ObservationLayout.for_size(obs.shape[1])
         p = self.params
         holding = self._steps * p.dt < p.startup_time - 1e-9
         self._steps += 1

@@ -83,3 +83,33 @@ def test_observations_stay_in_space_along_random_rollouts():
         obs, *_ = e.step({a: rng.uniform(-1, 1, 2) for a in e.agents})
         step += 1
     assert e.state_space.contains(e.state())
+
+
+def test_wall_slot_points_at_the_nearest_wall_within_the_horizon():
+    from boids_env import EnvConfig
+
+    config = EnvConfig.from_kwargs(robots=4, sense_walls=True)
+    observer = ob.Observer(config)
+    observer.reset(None)
+    pos = np.array([[0.0, 0.0], [4.5, 1.0], [-1.0, -4.2], [0.5, 0.5]])
+    obs = observer(pos, np.zeros((4, 2)))
+    wall = obs[:, observer.layout.wall]
+    np.testing.assert_allclose(wall, [[0.5, 0.0, 1.0], [0.0, -0.8, 1.0], [0.0, 0.0, 0.0]],
+                               atol=1e-6)
+    assert obs.shape[1] == observer.layout.size == 6 + 5 * 18 + 3
+    assert ob.ObservationLayout.for_size(obs.shape[1]) == observer.layout
+    assert obs[0] in parallel_env(robots=4, sense_walls=True).observation_space("follower_1")
+    # the Reynolds policy reads such observations too (it ignores the wall slot)
+    from boids_env.policies import ReynoldsPolicy
+
+    plain = EnvConfig.from_kwargs(robots=4)
+    without = ob.Observer(plain)
+    without.reset(None)
+    policy, twin = ReynoldsPolicy(startup_time=0), ReynoldsPolicy(startup_time=0)
+    np.testing.assert_array_equal(policy.act_batch(obs), twin.act_batch(without(pos,
+                                                                                np.zeros((4, 2)))))
+
+
+def test_layout_for_size_refuses_impossible_sizes():
+    with pytest.raises(ValueError, match="no observation layout has size 8"):
+        ob.ObservationLayout.for_size(8)
