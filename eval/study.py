@@ -94,3 +94,52 @@ def _statement(diff: float, reject: bool, g1: str, g2: str) -> str:
         return f"no significant difference ({diff:+.3g})"
     higher = g2 if diff > 0 else g1
     return f"higher at {higher} by {abs(diff):.3g} (significant)"
+
+
+def magnitudes(table: pd.DataFrame, policy: str) -> pd.DataFrame:
+    """Our mean beside the study's for each RQ1/RQ2 level and V_* metric (18 means; the
+    study's unwrapped alignment rule), and whether they agree within a factor of 2 (two means
+    both below 0.01 agree too: the study's 0.000 ± 0.000 cannot be matched by a ratio)."""
+    summary = study_summary()
+    rows = []
+    for rq in (1, 2):
+        ours = table[(table.policy == policy) & (table.group == GROUP_OF_RQ[rq])]
+        for level, g in ours.groupby("level", sort=False):
+            for metric in ("V_sep", "V_coh", "V_align"):
+                s = summary[(summary.rq == rq) & (summary.level == level)
+                            & (summary.metric == metric)]
+                if s.empty:
+                    continue
+                col = "V_align_unwrapped" if metric == "V_align" else metric
+                mine, theirs = float(g[col].mean()), float(s["mean"].iloc[0])
+                low, high = sorted((mine, theirs))
+                rows.append({"rq": rq, "level": level, "metric": metric, "study": theirs,
+                             "ours": mine,
+                             "within_2x": bool(high < 0.01 or (low > 0 and high <= 2 * low))})
+    return pd.DataFrame(rows)
+
+
+def block_scores(table: pd.DataFrame, policy: str, per_follower: tuple[str, ...] = ("rq3",),
+                 block_size: int = 5) -> pd.DataFrame:
+    """The study's design repeated: the seeds of ``table`` cut into consecutive blocks of
+    ``block_size`` (5, the study's runs per case), each scored on its own as one
+    reproduction: findings reproduced (of 27), magnitudes within 2× (of 18), and whether
+    the 19-robot cohesion finding (count_coh, 13 vs 19) is among them."""
+    from boids_env.eval.stats import analyse
+
+    seeds = sorted(table["seed"].unique())
+    rows = []
+    for b in range(len(seeds) // block_size):
+        chosen = seeds[b * block_size:(b + 1) * block_size]
+        part = table[table["seed"].isin(chosen) & (table.policy == policy)]
+        _, tukey_table = analyse(part, per_follower, unwrapped=True)
+        v = verdicts(tukey_table, policy)
+        coh19 = v[(v.rq == 3) & (v.metric == "count_coh") & (v.pair.str.contains("19"))
+                  & (v.pair.str.contains("13"))]
+        m = magnitudes(part, policy)
+        rows.append({"block": b + 1, "seeds": f"{chosen[0]}-{chosen[-1]}",
+                     "findings": int((v.verdict == "reproduced").sum()), "of": len(v),
+                     "magnitudes_within_2x": int(m.within_2x.sum()), "of_means": len(m),
+                     "cohesion_19_vs_13": bool((coh19.verdict == "reproduced").all()
+                                               and len(coh19))})
+    return pd.DataFrame(rows)
