@@ -5,9 +5,11 @@ each command's code is imported when it runs. :mod:`boids_env.train.cli` compose
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Any
 
 from boids_env.config import PATHS, PRESETS
+from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
 
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
@@ -121,7 +123,9 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                        "one or more policies, with statistics, figures and a report",
                        description="Runs every (policy, case, seed) episode of a suite in "
                        "parallel (resumable), writes results.parquet/.csv, the statistics, "
-                       "figures and report.md/report.html to --out.")
+                       "figures and report.md/report.html to --out. Exits 1 when some "
+                       "episodes failed (listed in errors.jsonl and the report), 2 for bad "
+                       "arguments, 130 when interrupted (finished episodes are kept).")
     p.add_argument("--policy", action="append", default=None,
                    help=POLICY_HELP + "; repeat to compare policies (first = baseline)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
@@ -130,10 +134,19 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                    "file")
     p.add_argument("--seeds", type=int, default=None, help="seeds 0..N-1 (suite's: 5)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
-    p.add_argument("--backend", choices=("process", "ray"), default="process")
+    p.add_argument("--backend", choices=BACKENDS, default="process",
+                   help="process (isolated worker processes, default), ray, or inline (in "
+                   "this process, for debugging: no timeout, a crash ends the run)")
+    p.add_argument("--episode-timeout", type=float, default=DEFAULT_EPISODE_TIMEOUT,
+                   metavar="SECONDS", help="stop an episode running longer and record it as "
+                   f"failed ({DEFAULT_EPISODE_TIMEOUT:g}; 0: no limit)")
     p.add_argument("--keep-trajectories", action="store_true",
                    help="keep every episode's trajectory (default: first seed per case)")
-    p.add_argument("--out", default="runs/eval", help="output folder (runs/eval)")
+    p.add_argument("--out", default="runs/eval", help="output folder (runs/eval); rerunning "
+                   "the same suite and policies resumes there")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an earlier evaluation of another suite or policies in --out "
+                   "(only the files it wrote are removed)")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=_cmd_eval)
 
@@ -142,16 +155,35 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     specs = args.policy or ["reynolds"]
     require("eval", *_policy_extras(specs), *(["ray"] if args.backend == "ray" else []),
             purpose="boids eval")
+    from pathlib import Path
+
+    from boids_env.eval.folder import record_files
     from boids_env.eval.report import build_report
-    from boids_env.eval.runner import PolicySpec, run_suite
+    from boids_env.eval.runner import PolicySpec, failures, run_suite
     from boids_env.eval.suites import load_suite
 
+    if args.episode_timeout < 0:
+        raise ValueError(f"--episode-timeout must be >= 0 seconds (0: no limit), got "
+                         f"{args.episode_timeout:g}")
     policies = [PolicySpec.parse(spec, args.preset) for spec in specs]
     suite = load_suite(args.suite).with_seeds(args.seeds)
     table = run_suite(policies, suite, args.out, workers=args.workers, backend=args.backend,
-                      keep_trajectories=args.keep_trajectories, progress=not args.no_progress)
-    report = build_report(args.out)
+                      keep_trajectories=args.keep_trajectories, progress=not args.no_progress,
+                      episode_timeout=args.episode_timeout or None, overwrite=args.overwrite)
+    failed = failures(args.out)
+    out = Path(args.out)
+    if table.empty:
+        print(f"boids eval: all {len(failed)} episodes failed; see {out / 'errors.jsonl'}",
+              file=sys.stderr)
+        return 1
+    before = {p.name for p in out.iterdir()}
+    report = build_report(out)
+    record_files(out, sorted({p.name for p in out.iterdir()} - before))
     print(f"{len(table)} episode rows; wrote results.parquet, results.csv and {report}")
+    if failed:
+        print(f"boids eval: {len(failed)} episodes failed (listed in {out / 'errors.jsonl'} "
+              f"and the report)", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -1,33 +1,48 @@
-"""Runs every (policy, case, seed) episode of a suite, in parallel, resumably.
+"""Runs every (policy, case, seed) episode of a suite, in parallel, resumably, isolating
+failures.
 
 Each finished episode is appended at once to ``episodes.jsonl`` in the output folder, so an
-interrupted run loses nothing: rerunning skips every episode already there. Cases that are the
-same configuration (the study's cases 2, 4 and 8) run once per seed and are reused. A crashing
-episode is written to ``errors.jsonl`` and reported; the others go on. At the end the tidy
-table, one row per (policy, case, seed), is written to ``results.parquet`` and
-``results.csv``.
+interrupted run loses nothing it finished: rerunning skips every episode already there (and
+reruns one whose trajectory file is missing or unreadable). Cases that are the same
+configuration (the study's cases 2, 4 and 8) run once per seed and are reused. Every episode
+runs in a worker process of its own (:mod:`boids_env.eval.pool`): an episode that raises
+(anything, ``SystemExit`` included), kills its worker or runs past the episode timeout is
+written to ``errors.jsonl`` with the reason, and the others go on. At the end (and on Ctrl-C)
+the tidy table, one row per (policy, case, seed), is written to ``results.parquet`` and
+``results.csv``. Every file is written atomically; the folder belongs to one evaluation
+(:mod:`boids_env.eval.folder`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
+import math
 import os
+import pickle
+import re
+import sys
+import time
 import traceback
-from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from boids_env.eval import folder
+from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT, guarded, run_isolated
 from boids_env.eval.suites import Case, Suite
+from boids_env.files import append_line, atomic_path, write_json
 
 EPISODES = "episodes.jsonl"
 ERRORS = "errors.jsonl"
-BACKENDS = ("process", "ray")
+TRAJECTORIES = "trajectories"
+MAX_WORKERS = 1024
 V_COLUMNS = ("V_sep", "V_coh", "V_align", "V_align_unwrapped")
 COUNT_COLUMNS = ("count_sep", "count_coh", "count_align", "count_align_unwrapped")
 
@@ -39,6 +54,8 @@ class PolicySpec:
 
     spec: str
     preset: str = "paper"
+    name: str | None = None
+    """Label in the tables and figures (default: derived from the spec)."""
 
     @classmethod
     def parse(cls, spec: str, preset: str = "paper") -> PolicySpec:
@@ -49,16 +66,39 @@ class PolicySpec:
 
     @property
     def label(self) -> str:
+        if self.name is not None:
+            return self.name
         base = Path(self.spec).stem if self.spec.endswith(".zip") else self.spec
         return f"{base}[{self.preset}]" if self.spec == "reynolds" else base
 
     @functools.cached_property
     def fingerprint(self) -> str:
         """Changes when the policy does (a model file's content is hashed, once)."""
-        if self.spec.endswith(".zip") and Path(self.spec).is_file():
-            digest = hashlib.sha256(Path(self.spec).read_bytes()).hexdigest()[:16]
+        from boids_env.policies.registry import LEARNED_MODEL
+
+        path = LEARNED_MODEL if self.spec == "learned" else Path(self.spec)
+        if path.suffix == ".zip" and path.is_file():
+            digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
             return f"{self.spec}#{digest}"
         return f"{self.spec}|{self.preset}"
+
+
+def distinct_policies(policies: Sequence[PolicySpec]) -> list[PolicySpec]:
+    """The policies with distinct labels: a spec given twice is a ``ValueError``; model files
+    of the same name in different folders are labelled by their path."""
+    if not policies:
+        raise ValueError("policies must name at least one policy")
+    seen: set[tuple[str, str]] = set()
+    for p in policies:
+        if not isinstance(p, PolicySpec):
+            raise TypeError(f"policies must be PolicySpec objects, got {p!r}")
+        ident = (p.spec, p.preset if p.spec == "reynolds" else "")
+        if ident in seen:
+            raise ValueError(f"policy {p.spec!r} is given twice")
+        seen.add(ident)
+    labels = [p.label for p in policies]
+    return [p if labels.count(p.label) == 1 or p.name is not None
+            else dataclasses.replace(p, name=p.spec) for p in policies]
 
 
 @dataclass(frozen=True)
@@ -68,7 +108,8 @@ class Task:
     policy: PolicySpec
     case: Case
     seed: int
-    trajectory_dir: str | None = None
+    trajectory: str | None = None
+    """File to write the episode's trajectory to (None: none)."""
 
     @property
     def key(self) -> str:
@@ -99,148 +140,324 @@ def run_task(task: Task) -> dict[str, Any]:
     metrics = dict(result.metrics)
     metrics["wall_time"] = result.wall_time
     metrics["key"] = task.key
-    if task.trajectory_dir is not None and result.recording is not None:
-        path = Path(task.trajectory_dir) / f"{task.key}.parquet"
+    if task.trajectory is not None and result.recording is not None:
+        path = Path(task.trajectory)
         path.parent.mkdir(parents=True, exist_ok=True)
         result.recording.to_parquet(path)
         metrics["trajectory"] = path.name
     return metrics
 
 
-def _safe_run(task: Task, run: Callable[[Task], dict[str, Any]] = run_task
-              ) -> tuple[bool, dict[str, Any]]:
-    try:
-        return True, run(task)
-    except Exception as exc:  # reported; the other episodes go on
-        return False, {"key": task.key, "error": f"{type(exc).__name__}: {exc}",
-                       "traceback": traceback.format_exc()}
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+def slug(text: str, limit: int = 60) -> str:
+    """A filesystem-safe, readable form of ``text`` (ASCII letters, digits, ``._-``; at most
+    ``limit`` characters, a short hash standing for what was cut)."""
+    out = _UNSAFE.sub("_", str(text)).strip("._") or "x"
+    if len(out) > limit:
+        out = out[: limit - 9] + "-" + hashlib.sha256(str(text).encode()).hexdigest()[:8]
+    return out
+
+
+def trajectory_name(policy: PolicySpec, case: Case, seed: int) -> str:
+    """``POLICY__CASE__seedN.parquet``, readable and filesystem-safe."""
+    return f"{slug(policy.label)}__{slug(case.name)}__seed{seed}.parquet"
 
 
 def plan(policies: Sequence[PolicySpec], suite: Suite, trajectory_dir: str | None = None,
          all_trajectories: bool = False) -> list[Task]:
     """The episodes to run: one per (policy, distinct configuration, seed). Trajectories go
     to ``trajectory_dir`` for every episode with ``all_trajectories``, else for the first
-    seed of each case (the report's trajectory figures)."""
+    seed of each case (the report's trajectory figures), named by policy, case and seed."""
     tasks, seen = [], set()
     for policy in policies:
         for case in suite.cases:
             for seed in suite.seeds:
-                keep = all_trajectories or seed == suite.seeds[0]
-                task = Task(policy, case, seed, trajectory_dir if keep else None)
+                task = Task(policy, case, seed)
                 if task.key not in seen:
                     seen.add(task.key)
                     tasks.append(task)
-    return tasks
+    if trajectory_dir is None:
+        return tasks
+    names = [trajectory_name(t.policy, t.case, t.seed) for t in tasks]
+    out = []
+    for task, name in zip(tasks, names, strict=True):
+        if not (all_trajectories or task.seed == suite.seeds[0]):
+            out.append(task)
+            continue
+        if names.count(name) > 1:  # two labels or case names that slug alike
+            name = name.replace(".parquet", f"__{task.key[:8]}.parquet")
+        out.append(dataclasses.replace(task, trajectory=str(Path(trajectory_dir) / name)))
+    return out
 
 
 def read_jsonl(path: Path) -> list[dict[str, Any]]:
-    """Rows of a JSON-lines file; a truncated last line (an interrupted write) is skipped."""
+    """Rows (JSON objects) of a JSON-lines file; a torn or foreign line is skipped."""
     if not path.exists():
         return []
     rows = []
-    for line in path.read_text().splitlines():
+    for line in path.read_bytes().decode("utf-8", errors="replace").splitlines():
         try:
-            rows.append(json.loads(line))
+            row = json.loads(line)
         except json.JSONDecodeError:
             continue
+        if isinstance(row, dict):
+            rows.append(row)
     return rows
+
+
+def _trajectory_ok(path: Path) -> bool:
+    import pyarrow.parquet as pq
+
+    try:
+        pq.ParquetFile(path).metadata  # noqa: B018 - reading the footer is the check
+    except Exception:  # missing, truncated or not Parquet
+        return False
+    return True
+
+
+def _finished(out: Path, tasks: Sequence[Task]) -> dict[str, dict[str, Any]]:
+    """Rows of ``episodes.jsonl`` for the planned tasks, keeping only those whose trajectory
+    (when the task keeps one) is there and readable; the others are rerun."""
+    rows = {r["key"]: r for r in read_jsonl(out / EPISODES) if isinstance(r.get("key"), str)}
+    done = {}
+    for task in tasks:
+        row = rows.get(task.key)
+        if row is None:
+            continue
+        if task.trajectory is not None:
+            name = row.get("trajectory")
+            if not isinstance(name, str) or not _trajectory_ok(out / TRAJECTORIES / name):
+                continue
+        done[task.key] = row
+    return done
+
+
+def identity(suite: Suite, policies: Sequence[PolicySpec]) -> dict[str, Any]:
+    """What makes two evaluations the same (the seeds aside: more seeds resume)."""
+    described = suite_to_dict(suite, policies)
+    described.pop("seeds")
+    for entry, policy in zip(described["policies"], policies, strict=True):
+        entry["fingerprint"] = policy.fingerprint
+    return described
+
+
+def _check_arguments(backend: str, workers: int | None, episode_timeout: float | None
+                     ) -> None:
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or not 1 <= workers <= MAX_WORKERS):
+        raise ValueError(f"workers must be an integer in [1, {MAX_WORKERS}], got {workers!r}")
+    if episode_timeout is not None and (
+            isinstance(episode_timeout, bool) or not isinstance(episode_timeout, int | float)
+            or not math.isfinite(episode_timeout) or episode_timeout <= 0):
+        raise ValueError(f"episode_timeout must be a positive number of seconds or None (no "
+                         f"limit), got {episode_timeout!r}")
 
 
 def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
               workers: int | None = None, backend: str = "process",
               keep_trajectories: bool = False, progress: bool = True,
-              runner: Callable[[Task], dict[str, Any]] | None = None) -> pd.DataFrame:
+              runner: Callable[[Task], dict[str, Any]] | None = None,
+              episode_timeout: float | None = DEFAULT_EPISODE_TIMEOUT,
+              overwrite: bool = False) -> pd.DataFrame:
     """Runs the suite for every policy and returns the tidy results table.
+
+    Every argument is checked before anything is written. Failed episodes are in
+    ``out/errors.jsonl`` (and :func:`failures`) and missing from the table.
 
     Args:
         policies: the policies to evaluate.
         suite: cases × seeds.
-        out: output folder; episodes already in its ``episodes.jsonl`` are not rerun.
-        workers: parallel processes (default: the number of cores); 1 runs in this process.
-        backend: ``process`` (a local process pool) or ``ray`` (``ray.init()`` must reach a
-            cluster or starts a local one; needs the ``ray`` extra).
+        out: output folder; episodes already in its ``episodes.jsonl`` are not rerun. A
+            folder holding another evaluation (other cases or policies) is refused.
+        workers: parallel worker processes (default: the number of cores; for ``ray`` the
+            cluster's CPUs), at most one per episode.
+        backend: see :data:`BACKENDS`; ``ray`` needs the ``ray`` extra (``ray.init()`` is
+            called if Ray is not initialised, and shut down at the end).
         keep_trajectories: write every episode's trajectory to
-            ``out/trajectories/KEY.parquet`` (otherwise only the first seed's of each case).
+            ``out/trajectories/POLICY__CASE__seedN.parquet`` (otherwise only the first seed's
+            of each case).
         progress: show a progress bar (tqdm).
-        runner: the function running one task (tests inject failures with it).
-    """
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    workers = (os.cpu_count() or 1) if workers is None else workers
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    tasks = plan(policies, suite, str(out / "trajectories"), keep_trajectories)
-    done = {row["key"]: row for row in read_jsonl(out / EPISODES)}
-    todo = [t for t in tasks if t.key not in done]
-    if (out / ERRORS).exists():
-        (out / ERRORS).unlink()
-    run = runner or run_task
-    errors: list[dict[str, Any]] = []
+        runner: the function running one task (tests inject failures with it); it must be
+            picklable (a module-level function) unless ``backend="inline"``.
+        episode_timeout: seconds an episode may run before its worker is killed and the
+            episode recorded as failed (None: no limit; ``inline`` cannot enforce it).
+        overwrite: replace an earlier evaluation in ``out`` (only what it wrote is removed).
 
-    def record(ok: bool, row: dict[str, Any]) -> None:
-        target = EPISODES if ok else ERRORS
-        with (out / target).open("a") as fh:
-            fh.write(json.dumps(row) + "\n")
+    Raises:
+        KeyboardInterrupt: after Ctrl-C, once the finished episodes are recorded, every
+            worker is stopped and the results table is written.
+    """
+    _check_arguments(backend, workers, episode_timeout)
+    if not isinstance(suite, Suite):
+        raise TypeError(f"suite must be a Suite, got {type(suite).__name__}")
+    policies = distinct_policies(policies)
+    run = runner or run_task
+    if backend == "process":
+        try:
+            pickle.dumps(run)
+        except Exception as exc:
+            raise TypeError(f"runner must be picklable (a module-level function) for "
+                            f"backend='process', or use backend='inline': {exc}") from None
+    out = Path(out)
+    folder.check_target(out)
+    tasks = plan(policies, suite, str(out / TRAJECTORIES), keep_trajectories)
+
+    folder.claim(out, identity(suite, policies), overwrite=overwrite)
+    done = _finished(out, tasks)
+    todo = [t for t in tasks if t.key not in done]
+    (out / ERRORS).unlink(missing_ok=True)
+    errors: list[dict[str, Any]] = []
+    cases_of = _cases_of(tasks, suite)
+    bar = _progress(len(tasks), len(tasks) - len(todo), progress)
+
+    def record(task: Task, ok: bool, row: dict[str, Any]) -> None:
+        if ok and not isinstance(row, dict):
+            ok, row = False, {"reason": "exception", "error": f"the runner returned "
+                              f"{type(row).__name__}, not a dict of metrics"}
+        row.pop("fatal", None)
         if ok:
+            row["key"] = task.key
+            append_line(out / EPISODES, json.dumps(row))
             done[row["key"]] = row
         else:
+            row = {"key": task.key, "policy": task.policy.label, "case": task.case.name,
+                   "cases": cases_of[task.key], "seed": task.seed, **row}
+            append_line(out / ERRORS, json.dumps(row))
             errors.append(row)
-
-    bar = _progress(len(tasks), len(tasks) - len(todo), progress)
-    for ok, row in _execute(todo, run, workers, backend):
-        record(ok, row)
         bar.update(1)
-    bar.close()
-    for err in errors:
-        print(f"episode {err['key']} failed: {err['error']}")
-    table = results_table(tasks, done, suite)
-    table.to_parquet(out / "results.parquet", index=False)
-    to_csv(table, out / "results.csv")
-    (out / "suite.json").write_text(json.dumps(suite_to_dict(suite, policies), indent=2))
+
+    try:
+        _execute(todo, run, workers, backend, episode_timeout, record)
+    finally:
+        bar.close()
+        for err in errors:
+            print(f"episode failed: {err['policy']} · {err['case']} · seed {err['seed']}: "
+                  f"{err['error']}", file=sys.stderr)
+        table = results_table(tasks, done, suite)
+        _write_results(out, table, suite, policies)
     return table
 
 
-def _execute(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]], workers: int,
-             backend: str) -> Iterable[tuple[bool, dict[str, Any]]]:
+def _cases_of(tasks: Sequence[Task], suite: Suite) -> dict[str, list[str]]:
+    """Every case each task stands for (cases of the same configuration share a task)."""
+    return {t.key: [c.name for c in suite.cases if c.config_key == t.case.config_key]
+            for t in tasks}
+
+
+def _write_results(out: Path, table: pd.DataFrame, suite: Suite,
+                   policies: Sequence[PolicySpec]) -> None:
+    with atomic_path(out / "results.parquet") as tmp:
+        table.to_parquet(tmp, index=False)
+    to_csv(table, out / "results.csv")
+    write_json(out / "suite.json", suite_to_dict(suite, policies))
+
+
+def failures(out: str | Path) -> list[dict[str, Any]]:
+    """The failed episodes of the last run into ``out`` (rows of ``errors.jsonl``)."""
+    return read_jsonl(Path(out) / ERRORS)
+
+
+Record = Callable[[Task, bool, dict[str, Any]], None]
+
+
+def _execute(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]],
+             workers: int | None, backend: str, timeout: float | None, record: Record
+             ) -> None:
     if not tasks:
         return
-    if backend == "ray":
-        yield from _execute_ray(tasks)
-        return
-    safe = functools.partial(_safe_run, run=run)
-    if workers == 1 or len(tasks) == 1:
+    if backend == "inline":
         for task in tasks:
-            yield safe(task)
-        return
-    import multiprocessing as mp
-
-    ctx = mp.get_context("forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn")
-    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=ctx) as pool:
-        pending = {pool.submit(safe, t): t for t in tasks}
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in finished:
-                task = pending.pop(fut)
-                try:
-                    yield fut.result()
-                except Exception as exc:
-                    yield False, {"key": task.key, "error": f"{type(exc).__name__}: {exc}"}
+            record(task, *_inline(run, task))
+    elif backend == "ray":
+        _execute_ray(tasks, run, workers, timeout, record)
+    else:
+        run_isolated(tasks, run, record, workers=min(workers or os.cpu_count() or 1,
+                                                     len(tasks)), timeout=timeout)
 
 
-def _execute_ray(tasks: Sequence[Task]) -> Iterable[tuple[bool, dict[str, Any]]]:
+def _inline(run: Callable[[Task], dict[str, Any]], task: Task) -> tuple[bool, dict[str, Any]]:
+    try:
+        return True, run(task)
+    except KeyboardInterrupt:
+        raise  # in this process a policy's KeyboardInterrupt cannot be told from Ctrl-C
+    except BaseException as exc:  # SystemExit of a policy included
+        return False, {"reason": "exception", "error": f"{type(exc).__name__}: {exc}",
+                       "traceback": traceback.format_exc()}
+
+
+def _execute_ray(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]],
+                 workers: int | None, timeout: float | None, record: Record) -> None:
+    """Ray tasks with the process backend's isolation: any exception is a failure row, a
+    crashed worker fails only its task (no retries), and at most ``workers`` tasks are in
+    flight so each is timed from when it starts running."""
     try:
         import ray
     except ImportError as exc:
         raise ImportError("backend='ray' needs: pip install 'boids-env[ray]'") from exc
-    if not ray.is_initialized():
-        ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False)
-    remote = ray.remote(_safe_run)
-    pending = [remote.remote(t) for t in tasks]
-    while pending:
-        finished, pending = ray.wait(pending, num_returns=1)
-        yield ray.get(finished[0])
+    started = not ray.is_initialized()
+    if started:
+        ray.init(include_dashboard=False, log_to_driver=False)
+    remote = ray.remote(max_retries=0)(guarded)
+    limit = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
+    queue: deque[Task] = deque(tasks)
+    running: dict[Any, tuple[Task, float]] = {}
+    try:
+        while queue or running:
+            while queue and len(running) < limit:
+                task = queue.popleft()
+                running[remote.remote(run, task)] = (task, time.monotonic())
+            wait_for = None
+            if timeout is not None:
+                first = min(start for _, start in running.values())
+                wait_for = max(0.0, first + timeout - time.monotonic())
+            ready, _ = ray.wait(list(running), num_returns=1, timeout=wait_for)
+            for ref in ready:
+                record(running.pop(ref)[0], *_ray_outcome(ray, ref))
+            _ray_timeouts(ray, running, timeout, record)
+    except KeyboardInterrupt:
+        _ray_drain(ray, running, record)
+        raise
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def _ray_timeouts(ray: Any, running: dict[Any, tuple[Task, float]], timeout: float | None,
+                  record: Record) -> None:
+    if timeout is None:
+        return
+    now = time.monotonic()
+    for ref, (task, start) in list(running.items()):
+        if now - start >= timeout:
+            ray.cancel(ref, force=True)
+            del running[ref]
+            record(task, False, {"reason": "timeout", "error": (
+                f"the episode ran longer than the episode timeout ({timeout:g} s); its Ray "
+                f"task was cancelled")})
+
+
+def _ray_drain(ray: Any, running: dict[Any, tuple[Task, float]], record: Record) -> None:
+    """After Ctrl-C: records the tasks already finished and cancels the others."""
+    if running:
+        ready, _ = ray.wait(list(running), num_returns=len(running), timeout=0)
+        for ref in ready:
+            record(running.pop(ref)[0], *_ray_outcome(ray, ref))
+    for ref in running:
+        ray.cancel(ref, force=True)
+
+
+def _ray_outcome(ray: Any, ref: Any) -> tuple[bool, dict[str, Any]]:
+    try:
+        ok, row = ray.get(ref)
+    except Exception as exc:  # the worker crashed or the task was lost
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        return False, {"reason": "worker died", "error": f"{type(exc).__name__}: {first}"}
+    row.pop("fatal", None)
+    return ok, row
 
 
 def results_table(tasks: Sequence[Task], done: dict[str, dict[str, Any]], suite: Suite
@@ -264,12 +481,13 @@ def results_table(tasks: Sequence[Task], done: dict[str, dict[str, Any]], suite:
 
 
 def to_csv(table: pd.DataFrame, path: Path) -> None:
-    """CSV with the per-follower count lists as JSON strings."""
+    """CSV with the per-follower count lists as JSON strings, written atomically."""
     flat = table.copy()
     for col in flat.columns:
         if col.startswith("count_"):
             flat[col] = flat[col].map(json.dumps)
-    flat.to_csv(path, index=False)
+    with atomic_path(path) as tmp:
+        flat.to_csv(tmp, index=False)
 
 
 def suite_to_dict(suite: Suite, policies: Sequence[PolicySpec]) -> dict[str, Any]:

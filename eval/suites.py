@@ -4,13 +4,22 @@ the study lists as future work. Users write their own in TOML (see :func:`load_s
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import numbers
 import tomllib
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from boids_env.config import FIELD_OWNER, EnvConfig, ReynoldsParams, reynolds_params
+from boids_env.config import (
+    FIELD_OWNER,
+    EnvConfig,
+    ReynoldsParams,
+    check_integer,
+    reynolds_params,
+)
 
 POLICY_FIELDS = tuple(f.name for f in fields(ReynoldsParams))
 """Case fields that parameterise the Reynolds policy (others are env config fields)."""
@@ -37,6 +46,13 @@ class Case:
         return json.dumps({"env": self.env, "policy": self.policy}, sort_keys=True)
 
 
+MAX_SEEDS = 10_000
+"""Most seeds a suite may have (10,000 × the paper's 7 distinct cases is about 6 hours of
+episodes on 2 cores); more is refused before anything is allocated."""
+MAX_SEED = 2**32 - 1
+"""Largest seed value (numpy's legacy seeding range, which every consumer accepts)."""
+
+
 @dataclass(frozen=True)
 class Suite:
     """Cases × seeds; ``groups`` are analysed separately (one ANOVA per group and metric)."""
@@ -49,6 +65,26 @@ class Suite:
     V_*, as the study did for group size."""
     followers_analysed: int = 6
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ValueError(f"suite name must be a non-empty string, got {self.name!r}")
+        cases = _sequence("cases", self.cases)
+        if not cases or not all(isinstance(c, Case) for c in cases):
+            raise ValueError(f"cases must be a non-empty sequence of Case, got {self.cases!r}")
+        names = [c.name for c in cases]
+        if len(set(names)) != len(names):
+            raise ValueError(f"case names must be unique, got {names}")
+        object.__setattr__(self, "cases", cases)
+        object.__setattr__(self, "seeds", check_seeds(self.seeds))
+        groups = _sequence("per_follower", self.per_follower)
+        unknown = [g for g in groups if g not in {c.group for c in cases}]
+        if unknown:
+            raise ValueError(f"per_follower names group(s) {unknown} that no case belongs to; "
+                             f"groups: {sorted({c.group for c in cases})}")
+        object.__setattr__(self, "per_follower", groups)
+        object.__setattr__(self, "followers_analysed", check_integer(
+            "followers_analysed", self.followers_analysed, 1, 10_000))
+
     @property
     def groups(self) -> dict[str, list[Case]]:
         out: dict[str, list[Case]] = {}
@@ -56,16 +92,43 @@ class Suite:
             out.setdefault(case.group, []).append(case)
         return out
 
-    def with_seeds(self, seeds: int | tuple[int, ...] | None) -> Suite:
-        """The suite with ``seeds`` (an int n means seeds 0..n-1)."""
+    def with_seeds(self, seeds: int | Sequence[int] | None) -> Suite:
+        """The suite with ``seeds`` (an int n means seeds 0..n-1, 1 <= n <=
+        :data:`MAX_SEEDS`)."""
         if seeds is None:
             return self
-        chosen = tuple(range(seeds)) if isinstance(seeds, int) else tuple(seeds)
-        if not chosen or any(isinstance(s, bool) or not isinstance(s, int) or s < 0
-                             for s in chosen):
-            raise ValueError(f"seeds must be a positive count or non-negative integers, got "
-                             f"{seeds!r}")
-        return Suite(self.name, self.cases, chosen, self.per_follower, self.followers_analysed)
+        return dataclasses.replace(self, seeds=check_seeds(seeds))
+
+
+def check_seeds(seeds: Any) -> tuple[int, ...]:
+    """Seeds as a tuple: a count n (seeds 0..n-1) or distinct integers in [0,
+    :data:`MAX_SEED`], at most :data:`MAX_SEEDS` of them; ``ValueError`` otherwise (checked
+    before anything is allocated)."""
+    allowed = (f"a count in [1, {MAX_SEEDS}] or a list of up to {MAX_SEEDS} distinct "
+               f"integers in [0, {MAX_SEED}]")
+    if isinstance(seeds, numbers.Integral) and not isinstance(seeds, bool):
+        if not 1 <= int(seeds) <= MAX_SEEDS:
+            raise ValueError(f"seeds must be {allowed}, got {seeds!r}")
+        return tuple(range(int(seeds)))
+    if isinstance(seeds, str | bytes) or not isinstance(seeds, Sequence):
+        raise ValueError(f"seeds must be {allowed}, got {seeds!r}")
+    if not 1 <= len(seeds) <= MAX_SEEDS:
+        raise ValueError(f"seeds must be {allowed}, got {len(seeds)} seeds")
+    bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, numbers.Integral)
+           or not 0 <= int(s) <= MAX_SEED]
+    if bad:
+        raise ValueError(f"seeds must be {allowed}, got {bad[:5]!r} in {list(seeds)[:10]!r}")
+    chosen = tuple(int(s) for s in seeds)
+    if len(set(chosen)) != len(chosen):
+        repeated = sorted({s for s in chosen if chosen.count(s) > 1})
+        raise ValueError(f"seeds must be distinct, got {repeated} more than once")
+    return chosen
+
+
+def _sequence(name: str, value: Any) -> tuple[Any, ...]:
+    if isinstance(value, str | bytes) or not isinstance(value, Sequence):
+        raise ValueError(f"{name} must be a sequence, got {value!r}")
+    return tuple(value)
 
 
 def _sweep(group: str, factor: str, levels: list[tuple[str, dict[str, Any]]],
@@ -136,36 +199,31 @@ def load_suite(spec: str | Path) -> Suite:
         data = tomllib.loads(path.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
         raise ValueError(f"cannot read suite file {path}: {exc}") from exc
-    return suite_from_dict(data, default_name=path.stem)
+    try:
+        return suite_from_dict(data, default_name=path.stem)
+    except ValueError as exc:
+        raise ValueError(f"suite file {path}: {exc}") from None
+
+
+SUITE_KEYS = ("name", "seeds", "defaults", "factor", "case", "per_follower",
+              "followers_analysed")
+FACTOR_KEYS = ("name", "levels", "group")
+CASE_LABELS = ("name", "group", "factor", "level")
 
 
 def suite_from_dict(data: dict[str, Any], default_name: str = "custom") -> Suite:
-    """Builds and validates a suite from the TOML structure of :func:`load_suite`."""
-    known = {"name", "seeds", "defaults", "factor", "case", "per_follower"}
-    unknown = sorted(set(data) - known)
+    """Builds and validates a suite from the TOML structure of :func:`load_suite`; every
+    mistake is a ``ValueError`` naming the key and what is allowed."""
+    if not isinstance(data, dict):
+        raise ValueError(f"a suite must be a table of keys {list(SUITE_KEYS)}, got {data!r}")
+    unknown = sorted(set(data) - set(SUITE_KEYS))
     if unknown:
-        raise ValueError(f"unknown suite key(s) {unknown}; allowed: {sorted(known)}")
-    defaults = dict(data.get("defaults", {}))
+        raise ValueError(f"unknown suite key(s) {unknown}; allowed: {sorted(SUITE_KEYS)}")
+    defaults = _table(data.get("defaults", {}), "defaults", "a table ([defaults]) of env "
+                      "config fields and Reynolds parameters")
     _check_fields(defaults, "defaults")
-    cases: list[Case] = []
-    for i, factor in enumerate(data.get("factor", [])):
-        name, levels = factor.get("name"), factor.get("levels")
-        if not isinstance(name, str) or not isinstance(levels, list) or not levels:
-            raise ValueError(f"factor {i} needs a name (a field) and a non-empty list levels")
-        _check_fields({name: None}, f"factor {name!r}")
-        cases += _sweep(factor.get("group", name), name,
-                        [(str(v), {name: v}) for v in levels], defaults)
-    for i, raw in enumerate(data.get("case", [])):
-        raw = dict(raw)
-        name = str(raw.pop("name", f"case{i + 1}"))
-        group = str(raw.pop("group", "cases"))
-        factor = str(raw.pop("factor", "case"))
-        level = str(raw.pop("level", name))
-        _check_fields(raw, f"case {name!r}")
-        merged = {**defaults, **raw}
-        cases.append(Case(name, group, factor, level,
-                          {k: v for k, v in merged.items() if k not in POLICY_FIELDS},
-                          {k: v for k, v in merged.items() if k in POLICY_FIELDS}))
+    cases = [*_factor_cases(data.get("factor", []), defaults),
+             *_explicit_cases(data.get("case", []), defaults)]
     if not cases:
         raise ValueError("a suite needs at least one [[factor]] or [[case]]")
     for case in cases:
@@ -177,10 +235,75 @@ def suite_from_dict(data: dict[str, Any], default_name: str = "custom") -> Suite
     names = [c.name for c in cases]
     if len(set(names)) != len(names):
         raise ValueError(f"case names must be unique, got {names}")
-    seeds = data.get("seeds", 5)
-    suite = Suite(str(data.get("name", default_name)), tuple(cases),
-                  per_follower=tuple(data.get("per_follower", ())))
-    return suite.with_seeds(tuple(seeds) if isinstance(seeds, list) else seeds)
+    name = data.get("name", default_name)
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"suite key name must be a non-empty string, got {name!r}")
+    per_follower = data.get("per_follower", [])
+    if not isinstance(per_follower, list) or not all(isinstance(g, str) for g in per_follower):
+        raise ValueError(f"suite key per_follower must be a list of group names, got "
+                         f"{per_follower!r}")
+    followers = data.get("followers_analysed", 6)
+    try:
+        seeds = check_seeds(data.get("seeds", 5))
+        return Suite(name, tuple(cases), seeds, tuple(per_follower),
+                     check_integer("followers_analysed", followers, 1, 10_000))
+    except ValueError as exc:
+        raise ValueError(f"suite key {exc}") from None
+
+
+def _table(value: Any, key: str, allowed: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ValueError(f"suite key {key} must be {allowed}, got {value!r}")
+    return dict(value)
+
+
+def _tables(value: Any, key: str) -> list[dict[str, Any]]:
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise ValueError(f"suite key {key} must be an array of tables ([[{key}]] sections), "
+                         f"got {value!r}")
+    return value
+
+
+def _label(value: Any, key: str) -> str:
+    if isinstance(value, bool) or not isinstance(value, str | int | float):
+        raise ValueError(f"{key} must be a string (or a number), got {value!r}")
+    return str(value)
+
+
+def _factor_cases(raw: Any, defaults: dict[str, Any]) -> list[Case]:
+    cases: list[Case] = []
+    for i, factor in enumerate(_tables(raw, "factor")):
+        where = f"factor {i + 1}"
+        unknown = sorted(set(factor) - set(FACTOR_KEYS))
+        if unknown:
+            raise ValueError(f"{where}: unknown key(s) {unknown}; a [[factor]] has "
+                             f"{list(FACTOR_KEYS)}")
+        name, levels = factor.get("name"), factor.get("levels")
+        if not isinstance(name, str):
+            raise ValueError(f"{where}: name must be the field to sweep (a string), got "
+                             f"{name!r}")
+        _check_fields({name: None}, f"{where} ({name!r})")
+        if not isinstance(levels, list) or not levels:
+            raise ValueError(f"{where} ({name!r}): levels must be a non-empty list of values, "
+                             f"got {levels!r}")
+        group = _label(factor.get("group", name), f"{where} ({name!r}): group")
+        cases += _sweep(group, name, [(str(v), {name: v}) for v in levels], defaults)
+    return cases
+
+
+def _explicit_cases(raw: Any, defaults: dict[str, Any]) -> list[Case]:
+    cases: list[Case] = []
+    for i, table in enumerate(_tables(raw, "case")):
+        table = dict(table)
+        labels = {"name": f"case{i + 1}", "group": "cases", "factor": "case"}
+        labels = {k: _label(table.pop(k, v), f"case {i + 1}: {k}") for k, v in labels.items()}
+        level = _label(table.pop("level", labels["name"]), f"case {i + 1}: level")
+        _check_fields(table, f"case {labels['name']!r}")
+        merged = {**defaults, **table}
+        cases.append(Case(labels["name"], labels["group"], labels["factor"], level,
+                          {k: v for k, v in merged.items() if k not in POLICY_FIELDS},
+                          {k: v for k, v in merged.items() if k in POLICY_FIELDS}))
+    return cases
 
 
 def _check_fields(values: dict[str, Any], where: str) -> None:
