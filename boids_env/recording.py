@@ -21,6 +21,7 @@ import numpy.typing as npt
 
 from boids_env import metrics
 from boids_env.config import EnvConfig
+from boids_env.files import atomic_path
 
 if TYPE_CHECKING:
     from boids_env.environment import BoidsEnv
@@ -54,10 +55,14 @@ class Recording:
                                        self.leader_path)
 
     def to_parquet(self, path: str | Path) -> None:
-        """Writes the tidy table with the config in the schema metadata."""
+        """Writes the tidy table with the config in the schema metadata, atomically: a
+        temporary file beside ``path`` is renamed over it when complete, so an existing file
+        survives a failed write (a full disk, Ctrl-C)."""
         import pyarrow as pa
         import pyarrow.parquet as pq
 
+        if Path(path).is_dir():
+            raise IsADirectoryError(f"cannot write a recording to {path}: it is a folder")
         steps, n = self.positions.shape[:2]
         cols = {
             "step": np.repeat(np.arange(steps), n),
@@ -71,17 +76,29 @@ class Recording:
         meta = {"config": self.config.to_dict(), "extra": self.extra,
                 "leader_path": None if self.leader_path is None else self.leader_path.tolist()}
         table = table.replace_schema_metadata({"boids_env": json.dumps(meta)})
-        pq.write_table(table, str(path))
+        with atomic_path(path) as tmp:
+            pq.write_table(table, str(tmp))
 
     @classmethod
     def from_parquet(cls, path: str | Path) -> Recording:
-        """Reads a file written by :meth:`to_parquet`; a clear ``ValueError`` otherwise."""
+        """Reads a file written by :meth:`to_parquet`.
+
+        Raises ``FileNotFoundError`` for a missing file and a ``ValueError`` naming the file
+        and the problem for anything that is not exactly one recording: a folder (a dataset
+        of several files), an empty or unreadable file, missing columns, bad metadata, a
+        config that disagrees with the data, duplicated, missing or negative step and robot
+        indices, non-finite values.
+        """
         import pyarrow.parquet as pq
 
+        path = Path(path)
+        if path.is_dir():
+            raise ValueError(f"{path} is a folder, not a recording file (one recording is one "
+                             f"Parquet file written by Recording.to_parquet)")
+        if not path.exists():
+            raise FileNotFoundError(f"recording not found: {path}")
         try:
             table = pq.read_table(str(path))
-        except FileNotFoundError:
-            raise
         except Exception as exc:
             raise ValueError(f"cannot read recording {path}: not a Parquet file ({exc})") from exc
         missing = [c for c in COLUMNS if c not in table.column_names]
@@ -89,21 +106,98 @@ class Recording:
         if missing or raw is None:
             raise ValueError(f"{path} is not a boids-env recording (missing columns {missing} "
                              f"or metadata)")
-        meta = json.loads(raw)
-        data = {c: table.column(c).to_numpy() for c in COLUMNS}
-        n = int(data["robot"].max()) + 1
-        steps = len(data["robot"]) // n
-        order = np.lexsort((data["robot"], data["step"]))
+        config, extra, leader_path = _read_meta(path, raw)
+        data = _read_columns(path, table)
+        steps, n, order = _sample_grid(path, data)
+        if config.scenario.robots != n:
+            raise ValueError(f"{path}: its config says robots={config.scenario.robots} but the "
+                             f"data hold {n} robots")
+        time = data["time"][order].reshape(steps, n)
+        if np.any(time != time[:, :1]):
+            step = int(np.nonzero(np.any(time != time[:, :1], axis=1))[0][0])
+            raise ValueError(f"{path}: the robots of step {step} have different times")
 
         def pair(a: str, b: str) -> FloatArray:
             return np.stack([data[a][order], data[b][order]], axis=1).reshape(steps, n, 2)
 
-        path = meta.get("leader_path")
-        return cls(EnvConfig.from_dict(meta["config"]), data["time"][order][::n].copy(),
-                   pair("x", "y"), pair("vx", "vy"), pair("cmd_vx", "cmd_vy"),
-                   meta.get("extra", {}),
-                   None if path is None else np.asarray(path, dtype=float).reshape(-1, 2))
+        return cls(config, time[:, 0].copy(), pair("x", "y"), pair("vx", "vy"),
+                   pair("cmd_vx", "cmd_vy"), extra, leader_path)
 
+
+def _read_meta(path: Path, raw: bytes) -> tuple[EnvConfig, dict[str, Any], FloatArray | None]:
+    """The config, extra and leader path of a recording's metadata; ``ValueError`` naming the
+    file otherwise."""
+    try:
+        meta = json.loads(raw)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: its boids_env metadata is not valid JSON ({exc})") from None
+    if not isinstance(meta, dict) or not isinstance(meta.get("config"), dict):
+        raise ValueError(f"{path}: its boids_env metadata has no config table")
+    try:
+        config = EnvConfig.from_dict(meta["config"])
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{path}: its config metadata is invalid: {exc}") from None
+    extra = meta.get("extra", {})
+    if not isinstance(extra, dict):
+        raise ValueError(f"{path}: its extra metadata must be a table, got {extra!r}")
+    raw_path = meta.get("leader_path")
+    if raw_path is None:
+        return config, extra, None
+    try:
+        leader_path = np.asarray(raw_path, dtype=float).reshape(-1, 2)
+    except (ValueError, TypeError):
+        leader_path = None
+    if leader_path is None or not np.all(np.isfinite(leader_path)):
+        raise ValueError(f"{path}: its leader_path metadata must be a list of finite (x, y) "
+                         f"points")
+    return config, extra, leader_path
+
+
+def _read_columns(path: Path, table: Any) -> dict[str, npt.NDArray[Any]]:
+    """The recording's columns as numpy arrays: integer step and robot, finite floats."""
+    data: dict[str, npt.NDArray[Any]] = {}
+    for name in COLUMNS:
+        column = table.column(name).to_numpy(zero_copy_only=False)
+        if name in ("step", "robot"):
+            if column.dtype.kind not in "iu":
+                raise ValueError(f"{path}: column {name!r} must hold integers, got "
+                                 f"{column.dtype}")
+        else:
+            if column.dtype.kind not in "fiu":
+                raise ValueError(f"{path}: column {name!r} must hold numbers, got "
+                                 f"{column.dtype}")
+            column = column.astype(np.float64)
+            if not np.all(np.isfinite(column)):
+                raise ValueError(f"{path}: column {name!r} holds non-finite values")
+        data[name] = column
+    if not len(data["step"]):
+        raise ValueError(f"{path} holds no samples (an empty recording)")
+    return data
+
+
+def _sample_grid(path: Path, data: dict[str, npt.NDArray[Any]]
+                 ) -> tuple[int, int, npt.NDArray[np.intp]]:
+    """(steps, robots, row order) of a complete (step, robot) grid: every step 0..T-1 holds
+    every robot 0..N-1 exactly once; ``ValueError`` naming what is wrong otherwise."""
+    step, robot = data["step"].astype(np.int64), data["robot"].astype(np.int64)
+    for name, values in (("step", step), ("robot", robot)):
+        if values.min() < 0:
+            raise ValueError(f"{path}: {name} indices must be >= 0, got {int(values.min())}")
+    n, steps = int(robot.max()) + 1, int(step.max()) + 1
+    order = np.lexsort((robot, step))
+    pairs = np.stack([step[order], robot[order]], axis=1)
+    same = np.all(pairs[1:] == pairs[:-1], axis=1)
+    if np.any(same):
+        s, r = pairs[1:][same][0]
+        raise ValueError(f"{path}: {int(same.sum())} duplicated (step, robot) rows, e.g. step "
+                         f"{s} robot {r} (several recordings in one file?)")
+    if len(step) != steps * n:
+        have_robots = np.bincount(robot, minlength=n)
+        short = np.nonzero(have_robots < steps)[0][:5].tolist()
+        raise ValueError(f"{path}: incomplete samples: {len(step)} rows for steps 0..{steps - 1}"
+                         f" × robots 0..{n - 1} ({steps * n} expected); robots {short} lack "
+                         f"some steps")
+    return steps, n, order
 
 class Recorder:
     """Collects an env's samples: call :meth:`capture` after reset and after every step."""
