@@ -130,6 +130,7 @@ def build_report(out: str | Path) -> Path:
                      f"Policies: {', '.join(p['label'] for p in suite['policies'])}. "
                      f"Seeds: {suite['seeds']}. Episodes in the table: {len(table)} "
                      f"(cases that are the same configuration share their runs).", ""]
+    md += failed_episodes(out)
     policies = list(dict.fromkeys(table["policy"]))
     is_paper = suite["name"] == "paper"
     if is_paper:
@@ -178,6 +179,28 @@ def build_report(out: str | Path) -> Path:
     return report
 
 
+# Failed episodes: written by the reliability work (issue 14); one function and its one call.
+def failed_episodes(out: Path) -> list[str]:
+    """Markdown lines listing the episodes of the last ``boids eval`` run into ``out`` that
+    failed (from ``errors.jsonl``: policy, cases, seed, reason and error), so a report never
+    silently omits them; no lines when every episode finished."""
+    from boids_env.eval.runner import failures
+
+    rows = failures(out)
+    if not rows:
+        return []
+    table = pd.DataFrame([{
+        "policy": r.get("policy"), "cases": ", ".join(map(str, r.get("cases") or
+                                                          [r.get("case")])),
+        "seed": r.get("seed"), "reason": r.get("reason"),
+        "error": str(r.get("error") or "-").splitlines()[0][:200].replace("|", "/")}
+        for r in rows])
+    return ["## Failed episodes", "",
+            f"{len(rows)} episode(s) failed and are missing from every table and figure "
+            f"below (details and tracebacks in `errors.jsonl`; rerunning the same "
+            f"command retries them).", "", _md_table(table), ""]
+
+
 def _figures(table: pd.DataFrame, suite: dict[str, Any], per_follower: tuple[str, ...],
              followers: int, fig_dir: Path, out: Path, is_paper: bool) -> list[str]:
     md: list[str] = []
@@ -205,7 +228,12 @@ def _figures(table: pd.DataFrame, suite: dict[str, Any], per_follower: tuple[str
             traj = out / "trajectories" / str(row.trajectory)
             if not traj.is_file():
                 continue
-            rec = Recording.from_parquet(traj)
+            try:
+                rec = Recording.from_parquet(traj)
+            except (OSError, ValueError) as exc:  # a damaged file must not sink the report
+                md += [f"(trajectory of {row.policy}: {row.case}, seed {row.seed} not shown: "
+                       f"{exc})", ""]
+                continue
             path = figures.trajectories(rec, f"{row.policy}: {row.case}, seed {row.seed}",
                                         fig_dir / f"traj_{_slug(row.policy)}_"
                                                   f"{_slug(row.case)}.png")
