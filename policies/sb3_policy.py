@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.files import atomic_path
 from boids_env.policies.base import BatchPolicy
 
 META_ENTRY = "boids.json"
@@ -32,25 +33,48 @@ def algorithm_class(name: str) -> Any:
 
 
 def read_meta(path: str | Path) -> dict[str, Any]:
-    """The ``boids.json`` metadata of a model zip ({} for a zip saved elsewhere)."""
+    """The ``boids.json`` metadata of a model zip ({} for a zip saved elsewhere); a
+    ``ValueError`` naming the file for a file that is not a zip or a metadata entry that is
+    not a JSON table."""
     try:
         with zipfile.ZipFile(path) as zf:
             if META_ENTRY not in zf.namelist():
                 return {}
-            return dict(json.loads(zf.read(META_ENTRY)))
-    except (zipfile.BadZipFile, OSError) as exc:
+            raw = zf.read(META_ENTRY)
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError) as exc:
         raise ValueError(f"cannot read SB3 model {path}: {exc}") from exc
+    try:
+        meta = json.loads(raw)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(f"SB3 model {path}: its {META_ENTRY} is not valid JSON ({exc})"
+                         ) from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"SB3 model {path}: its {META_ENTRY} must be a JSON table, got "
+                         f"{type(meta).__name__}")
+    return meta
 
 
 def write_meta(path: str | Path, meta: dict[str, Any]) -> None:
-    """Adds (or replaces) the ``boids.json`` entry of a model zip saved by SB3."""
+    """Adds (or replaces) the ``boids.json`` entry of a model zip saved by SB3.
+
+    The new zip is written beside the model and renamed over it when complete, so the model
+    is never truncated: a full disk or an interrupt leaves the previous file as it was.
+    """
     path = Path(path)
-    with zipfile.ZipFile(path) as zf:
-        entries = {name: zf.read(name) for name in zf.namelist() if name != META_ENTRY}
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
-        for name, data in entries.items():
-            zf.writestr(name, data)
-        zf.writestr(META_ENTRY, json.dumps(meta, indent=2))
+    try:
+        text = json.dumps(meta, indent=2)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"model metadata must be JSON-serialisable: {exc}") from None
+    try:
+        with zipfile.ZipFile(path) as zf:
+            entries = [(info, zf.read(info.filename)) for info in zf.infolist()
+                       if info.filename != META_ENTRY]
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError) as exc:
+        raise ValueError(f"cannot add metadata to SB3 model {path}: {exc}") from exc
+    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+        for info, data in entries:
+            zf.writestr(info, data)
+        zf.writestr(META_ENTRY, text)
 
 
 class SB3Policy(BatchPolicy):
@@ -84,6 +108,7 @@ class SB3Policy(BatchPolicy):
         if not path.is_file():
             raise FileNotFoundError(f"policy model file not found: {path}")
         meta = read_meta(path)
+        env_fields = _env_fields(path, meta.get("env_fields"))
         names = [meta["algorithm"]] if "algorithm" in meta else list(ALGORITHMS)
         errors = []
         for name in names:
@@ -92,7 +117,7 @@ class SB3Policy(BatchPolicy):
             except Exception as exc:
                 errors.append(f"{name}: {exc}")
                 continue
-            return cls(model, meta.get("env_fields"), name=path.stem)
+            return cls(model, env_fields, name=path.stem)
         raise ValueError(f"cannot load SB3 model {path} ({'; '.join(errors)})")
 
     def act_batch(self, obs: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
@@ -122,6 +147,23 @@ class SB3Policy(BatchPolicy):
         if policy.squash_output:
             actions = policy.unscale_action(actions)
         return np.clip(actions, -self.max_speed, self.max_speed).astype(np.float32)
+
+
+def _env_fields(path: Path, fields: Any) -> dict[str, Any]:
+    """A model's ``env_fields`` metadata, checked to build a valid env config."""
+    if fields is None:
+        return {}
+    if not isinstance(fields, dict):
+        raise ValueError(f"SB3 model {path}: env_fields in its {META_ENTRY} must be a table of "
+                         f"env config fields, got {fields!r}")
+    from boids_env.config import EnvConfig
+
+    try:
+        EnvConfig.from_kwargs(**fields)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"SB3 model {path}: env_fields in its {META_ENTRY} are invalid: {exc}"
+                         ) from None
+    return dict(fields)
 
 
 def _gaussian_actor_critic(policy: Any) -> bool:
