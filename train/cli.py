@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from boids_env.eval import cli as eval_cli
 from boids_env.extras import require
@@ -54,6 +55,11 @@ def _cmd_train(args: argparse.Namespace) -> int:
     else:
         config = TrainConfig().replace(**overrides)
     require("train", purpose="boids train")
+    if config.device == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            raise ValueError("--device cuda but torch sees no GPU; use --device cpu or auto")
     from boids_env.train.run import train
 
     model = train(config, args.out, resume=args.resume, progress_bar=not args.no_progress)
@@ -76,6 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     interrupted)."""
     args = build_parser().parse_args(argv)
     try:
+        _check_out(args)
         return int(args.func(args))
     except KeyboardInterrupt:
         out = getattr(args, "out", None)
@@ -83,8 +90,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"\nboids {args.command}: interrupted{kept}", file=sys.stderr)
         return 130
     except (ValueError, TypeError, KeyError, OSError, ImportError) as exc:
-        print(f"boids {args.command}: error: {exc}", file=sys.stderr)
+        print(f"boids {args.command}: error: {error_text(exc)}", file=sys.stderr)
         return 2
+
+
+def _check_out(args: argparse.Namespace) -> None:
+    """``--out`` names a folder: an existing file there is refused before any work."""
+    out = getattr(args, "out", None)
+    if isinstance(out, str) and Path(out).exists() and not Path(out).is_dir():
+        raise NotADirectoryError(f"--out {out} is an existing file, not a folder; give a new "
+                                 f"or existing folder")
+
+
+def error_text(exc: BaseException) -> str:
+    """A one-line message for a user error: an operating-system error as ``No space left on
+    device: runs/x/results.parquet`` (what failed and where), a ``KeyError`` without quotes."""
+    if isinstance(exc, OSError) and exc.strerror and exc.filename is not None:
+        where = f"{exc.filename}" + (f" -> {exc.filename2}" if exc.filename2 else "")
+        return f"{exc.strerror}: {where}"
+    if isinstance(exc, KeyError) and len(exc.args) == 1 and isinstance(exc.args[0], str):
+        return exc.args[0]
+    return str(exc) or type(exc).__name__
 
 
 if __name__ == "__main__":  # pragma: no cover

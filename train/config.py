@@ -8,7 +8,14 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-from boids_env.config import FIELD_OWNER, PATHS, check_integer, check_number
+from boids_env.config import (
+    FIELD_OWNER,
+    LEADER_MAX_SPEED,
+    PATHS,
+    EnvConfig,
+    check_integer,
+    check_number,
+)
 
 ALGORITHMS = ("ppo", "sac")
 DEVICES = ("cpu", "cuda", "auto")
@@ -102,7 +109,8 @@ class TrainConfig:
                                          lambda n, v: check_integer(n, v, 2, 1000)))
         _set(self, "copies", check_integer("copies", self.copies, 1, 1024))
         _set(self, "leader_speeds", _tuple("leader_speeds", self.leader_speeds,
-                                           lambda n, v: check_number(n, v, 0.0, 10.0,
+                                           lambda n, v: check_number(n, v, 0.0,
+                                                                     LEADER_MAX_SPEED,
                                                                      lo_open=True, unit="m/s")))
         _set(self, "paths", _tuple("paths", self.paths, _path))
         _set(self, "path_rotations", _tuple("path_rotations", self.path_rotations,
@@ -115,14 +123,7 @@ class TrainConfig:
         _set(self, "torch_threads", check_integer("torch_threads", self.torch_threads, 0, 256))
         if self.device not in DEVICES:
             raise ValueError(f"device must be one of {DEVICES}, got {self.device!r}")
-        if not isinstance(self.env_fields, dict):
-            raise ValueError(f"env_fields must be a table of env config fields, got "
-                             f"{self.env_fields!r}")
-        keys = set(self.env_fields)
-        unknown = sorted((keys - set(FIELD_OWNER)) | (keys & {"robots"}))
-        if unknown:
-            raise ValueError(f"env_fields has unknown or reserved key(s) {unknown}; group "
-                             f"size goes in group_sizes, allowed: {sorted(FIELD_OWNER)}")
+        _check_env_fields(self)
         for name, lo, hi in (("learning_rate", 0.0, 1.0), ("gamma", 0.0, 1.0),
                              ("gae_lambda", 0.0, 1.0), ("clip_range", 0.0, 10.0),
                              ("tau", 0.0, 1.0)):
@@ -138,6 +139,8 @@ class TrainConfig:
         _set(self, "eval_seeds", tuple(check_integer("eval_seeds", s, 0, 2**32 - 1)
                                        for s in _as_tuple("eval_seeds", self.eval_seeds)))
 
+        _check_draws(self)
+
     # ------------------------------------------------------------------------- building
     @classmethod
     def from_toml(cls, path: str | Path, **overrides: Any) -> TrainConfig:
@@ -149,7 +152,10 @@ class TrainConfig:
             raise FileNotFoundError(f"training config not found: {path}") from None
         except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
             raise ValueError(f"cannot read training config {path}: {exc}") from exc
-        data = dict(data.get("train", data))
+        data = data.get("train", data)
+        if not isinstance(data, dict):
+            raise ValueError(f"training config {path}: [train] must be a table of TrainConfig "
+                             f"fields, got {data!r}")
         return cls.from_dict({**data, **{k: v for k, v in overrides.items() if v is not None}})
 
     @classmethod
@@ -196,6 +202,58 @@ class TrainConfig:
                 "gradient_steps": self.gradient_steps, "tau": self.tau,
                 "policy_kwargs": {"net_arch": list(self.net_arch),
                                   "log_std_init": self.log_std_init}}
+
+
+DRAWN = {"group_sizes": "robots", "leader_speeds": "leader_speed", "paths": "path",
+         "path_rotations": "path_rotation", "path_mirrors": "path_mirror",
+         "obs_noises": "obs_noise"}
+"""Training fields whose entries each episode draws, and the env field each sets."""
+_ALWAYS_DRAWN = ("group_sizes", "leader_speeds", "paths")
+"""Drawn fields that always override the env field (the others only when not the default)."""
+
+
+def _check_env_fields(config: TrainConfig) -> None:
+    """``env_fields`` must be a table of env config fields that builds a valid env config, and
+    must not set a field a training list draws (it would be silently overridden)."""
+    fields_ = config.env_fields
+    if not isinstance(fields_, dict):
+        raise ValueError(f"env_fields must be a table of env config fields, got {fields_!r}")
+    unknown = sorted(set(fields_) - set(FIELD_OWNER))
+    if unknown:
+        raise ValueError(f"env_fields has unknown key(s) {unknown}; allowed: "
+                         f"{sorted(FIELD_OWNER)}")
+    defaults = {f.name: f.default for f in fields(TrainConfig)}
+    for name, env_name in DRAWN.items():
+        drawn = name in _ALWAYS_DRAWN or getattr(config, name) != defaults[name]
+        if env_name in fields_ and drawn:
+            raise ValueError(f"env_fields must not set {env_name!r} (reserved: each episode "
+                             f"draws it from the training field {name}; put the value there, "
+                             f"e.g. {name} = [{fields_[env_name]!r}])")
+
+
+def _check_draws(config: TrainConfig) -> None:
+    """``env_fields`` with the first entry of every drawn training field (group_sizes,
+    leader_speeds, …), and then each other entry in turn, must give an env config the env
+    accepts; the error names the training field. (``boids_env.train.run.check_episodes``
+    checks every combination before a run writes anything.)"""
+    first = {env_name: getattr(config, name)[0] for name, env_name in DRAWN.items()}
+    try:
+        base = EnvConfig.from_kwargs(**{**config.env_fields, **first})
+    except (ValueError, TypeError) as exc:
+        try:
+            EnvConfig.from_kwargs(**config.env_fields)
+        except (ValueError, TypeError) as alone:
+            raise ValueError(f"env_fields: {alone}") from None
+        raise ValueError(f"env_fields {config.env_fields} with the first entry of each drawn "
+                         f"field ({', '.join(f'{n}[0]={getattr(config, n)[0]!r}' for n in DRAWN)})"
+                         f" give episodes the env refuses: {exc}") from None
+    for name, env_name in DRAWN.items():
+        for value in dict.fromkeys(getattr(config, name)):
+            try:
+                base.replace(**{env_name: value})
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"{name} entry {value!r} gives episodes the env refuses "
+                                 f"({env_name}={value!r}): {exc}") from None
 
 
 def _set(obj: object, name: str, value: Any) -> None:

@@ -1,0 +1,97 @@
+"""Training configs are checked before anything is written, and errors name the training
+field; the ``boids`` command turns user errors (operating-system ones included) into one
+clear line and exit status 2."""
+
+import errno
+
+import pytest
+
+from boids_env.train.cli import main
+from boids_env.train.config import TrainConfig
+
+
+def test_leader_speeds_beyond_the_env_cap_name_the_training_field():
+    with pytest.raises(ValueError, match=r"leader_speeds must be in \(0.0, 2.0\] m/s, got 5.0"):
+        TrainConfig(leader_speeds=(0.5, 5.0))
+
+
+def test_env_fields_are_validated_when_the_config_is_built():
+    with pytest.raises(ValueError, match=r"env_fields: dt must be in"):
+        TrainConfig(env_fields={"dt": -1})
+    with pytest.raises(ValueError, match=r"env_fields: max_cycles must be in \[1, "):
+        TrainConfig(env_fields={"max_cycles": -5})
+
+
+def test_env_fields_must_not_set_what_an_episode_draws():
+    with pytest.raises(ValueError, match=r"env_fields must not set 'leader_speed' \(reserved.*"
+                                         r"leader_speeds = \[0.6\]"):
+        TrainConfig(env_fields={"leader_speed": 0.6})
+    with pytest.raises(ValueError, match=r"must not set 'path'.*training field paths"):
+        TrainConfig(env_fields={"path": "circle"})
+    # a fixed sensing noise is fine while obs_noises is not drawn, refused when it is
+    assert TrainConfig(env_fields={"obs_noise": 0.02}).env_fields == {"obs_noise": 0.02}
+    with pytest.raises(ValueError, match=r"must not set 'obs_noise'.*obs_noises"):
+        TrainConfig(env_fields={"obs_noise": 0.02}, obs_noises=(0.0, 0.05))
+
+
+def test_every_drawn_entry_is_checked_and_named():
+    with pytest.raises(ValueError, match=r"group_sizes entry 900 gives episodes the env refuses "
+                                         r"\(robots=900\): arena_half_size must exceed"):
+        TrainConfig(group_sizes=(7, 900))
+    with pytest.raises(ValueError, match=r"leader_speeds entry 1.9 .*substeps"):
+        TrainConfig(leader_speeds=(0.5, 1.9), env_fields={"substeps": 2})
+    small = {"arena_half_size": 1.5, "path_size": 0.5}
+    assert TrainConfig(group_sizes=(4,), env_fields=small).group_sizes == (4,)
+    with pytest.raises(ValueError, match=r"group_sizes entry 13"):
+        TrainConfig(group_sizes=(4, 13), env_fields=small)
+
+
+def test_boids_train_refuses_a_bad_config_before_writing(tmp_path, capsys):
+    out = tmp_path / "t"
+    assert main(["train", "--leader-speeds", "0.5", "5", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "leader_speeds must be in (0.0, 2.0] m/s, got 5.0" in err
+    assert not out.exists()
+    bad = tmp_path / "bad.toml"
+    bad.write_text("train = 5\n")
+    assert main(["train", "--config", str(bad), "--out", str(out)]) == 2
+    assert "[train] must be a table" in capsys.readouterr().err
+    toml = tmp_path / "env.toml"
+    toml.write_text('[train]\nenv_fields = { dt = -1 }\n')
+    assert main(["train", "--config", str(toml), "--out", str(out)]) == 2
+    assert "env_fields: dt must be in" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("command", [["train"], ["run", "--robots", "3"],
+                                     ["eval", "--seeds", "1"]])
+def test_out_that_is_a_file_is_refused_before_any_work(tmp_path, capsys, command):
+    target = tmp_path / "taken"
+    target.write_text("a user's file")
+    assert main([*command, "--out", str(target)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"--out {target} is an existing file, not a folder" in err
+    assert "Traceback" not in err and len(err.splitlines()) == 1
+    assert target.read_text() == "a user's file"
+
+
+def test_operating_system_errors_are_one_clear_line(tmp_path, capsys, monkeypatch):
+    import boids_env.eval.run as run_module
+
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", "runs/x/metrics.json")
+
+    monkeypatch.setattr(run_module, "run", full_disk)
+    assert main(["run", "--robots", "3", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "boids run: error: No space left on device: runs/x/metrics.json"
+
+
+def test_cuda_without_a_gpu_is_refused_before_writing(tmp_path, capsys):
+    torch = pytest.importorskip("torch")
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a GPU")
+    out = tmp_path / "t"
+    assert main(["train", "--device", "cuda", "--out", str(out)]) == 2
+    assert "torch sees no GPU" in capsys.readouterr().err
+    assert not out.exists()
