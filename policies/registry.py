@@ -66,11 +66,7 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
                               ) from exc
         return SB3Policy.load(spec)
     if ":" in spec:
-        module_name, _, attr = spec.partition(":")
-        try:
-            obj = getattr(importlib.import_module(module_name), attr)
-        except (ImportError, AttributeError) as exc:
-            raise ValueError(f"cannot import policy {spec!r}: {exc}") from exc
+        obj = _import_object(spec)
         # A class passes isinstance(.., Policy) (its methods are attributes), so classes and
         # factories are told apart from instances explicitly.
         if inspect.isclass(obj) or (callable(obj) and not _is_policy(obj)):
@@ -86,6 +82,52 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         return policy
     raise ValueError(f"policy must be one of {BUILTIN}, reynolds@PRESET, a .zip SB3 model or "
                      f"module:object, got {spec!r}")
+
+
+def check_policy_spec(spec: str, preset: str = "paper") -> None:
+    """Checks, without building the policy, that :func:`load_policy` can: a built-in name, a
+    model zip that exists and whose metadata reads, or a ``module:object`` that imports and is
+    a Policy instance, class or factory. For callers that must refuse a bad spec before any
+    side effect (creating an output folder, starting workers); raises what ``load_policy``
+    would (``ValueError``, ``TypeError``, ``FileNotFoundError``)."""
+    spec, preset = split_preset(spec, preset)
+    if spec in ("reynolds", "random"):
+        return
+    if spec == "learned":
+        spec = str(LEARNED_MODEL)
+    if spec.endswith(".zip"):
+        if not Path(spec).is_file():
+            raise FileNotFoundError(f"policy model file not found: {spec}")
+        from boids_env.policies.sb3_policy import read_meta
+
+        read_meta(spec)
+        return
+    if ":" in spec:
+        obj = _import_object(spec)
+        if not (inspect.isclass(obj) or callable(obj) or _is_policy(obj)):
+            raise TypeError(f"{spec!r} is not a Policy (needs reset(seed) and act(obs)), a "
+                            f"Policy class or a factory, got {type(obj).__name__}")
+        return
+    raise ValueError(f"policy must be one of {BUILTIN}, reynolds@PRESET, a .zip SB3 model or "
+                     f"module:object, got {spec!r}")
+
+
+def _import_object(spec: str) -> Any:
+    """The object a ``module:object`` spec names; ``ValueError`` saying what is missing."""
+    module_name, _, attr = spec.partition(":")
+    if not module_name or not attr:
+        raise ValueError(f"a policy given as module:object needs both parts, got {spec!r}")
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # the module's own code may raise anything while importing
+        hint = (" (is its folder on PYTHONPATH? e.g. PYTHONPATH=. boids ...)"
+                if isinstance(exc, ModuleNotFoundError) else "")
+        raise ValueError(f"cannot import policy {spec!r}: {type(exc).__name__}: {exc}{hint}"
+                         ) from exc
+    try:
+        return getattr(module, attr)
+    except AttributeError as exc:
+        raise ValueError(f"cannot import policy {spec!r}: {exc}") from exc
 
 
 def _is_policy(obj: Any) -> bool:
