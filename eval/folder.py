@@ -47,9 +47,8 @@ def _normal(identity: dict[str, Any]) -> Any:
 
 
 def _describe(identity: dict[str, Any]) -> str:
-    suite = identity.get("suite", {})
     labels = [p.get("label", p.get("spec")) for p in identity.get("policies", [])]
-    return f"suite {suite.get('name')!r} with policies {labels}"
+    return f"suite {identity.get('name')!r} with policies {labels}"
 
 
 def _is_legacy(out: Path) -> bool:

@@ -46,8 +46,12 @@ Outcome = tuple[bool, dict[str, Any]]
 """``(True, row)`` for a finished item, ``(False, failure)`` otherwise; a failure has
 ``reason`` (``exception``, ``worker died`` or ``timeout``) and ``error`` (a sentence)."""
 
-PRELOAD = ("boids_env.environment", "boids_env.eval.episode", "boids_env.policies.registry")
+PRELOAD = ("boids_env.eval.runner", "boids_env.environment", "boids_env.eval.episode",
+           "boids_env.policies.registry")
 """Modules the forkserver imports once, so each worker starts without importing them."""
+STARTUP_TIMEOUT = 120.0
+"""Seconds a new worker may take to start and report ready."""
+READY = "ready"
 STOP_GRACE = 2.0
 """Seconds an idle worker gets to exit after being told to, before it is killed."""
 
@@ -90,6 +94,7 @@ def _worker(conn: Connection, alive: Connection, fn: Callable[[Any], dict[str, A
     """A worker's loop: receive an item, send its outcome, until told to stop (None)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_exit_with_parent, args=(alive,), daemon=True).start()
+    conn.send(READY)
     while True:
         try:
             item = conn.recv()
@@ -142,6 +147,20 @@ class _Slot:
         theirs.close()
         alive_r.close()
         return cls(process, ours, alive_w)
+
+    def ready(self) -> None:
+        """Waits for the worker's ready message; ``ChildProcessError`` if it dies first (it
+        could not start: e.g. the main module cannot be imported, as from ``python -``)."""
+        wait([self.conn, self.process.sentinel], timeout=STARTUP_TIMEOUT)
+        try:
+            if self.conn.poll() and self.conn.recv() == READY:
+                return
+        except (EOFError, OSError):
+            pass
+        self.kill()
+        raise ChildProcessError(
+            f"an eval worker process could not start "
+            f"({exit_description(self.process.exitcode)}; its error is printed above)")
 
     def assign(self, item: Any) -> bool:
         """Sends ``item``; False if the worker is gone."""
@@ -211,8 +230,10 @@ def _assign(ctx: Any, fn: Callable[[Any], dict[str, Any]], slots: list[_Slot],
         slots.remove(slot)
         slot.stop()
     busy = sum(s.item is not None for s in slots)
-    while len(slots) < min(workers, busy + len(queue)):
-        slots.append(_Slot.start(ctx, fn))
+    new = [_Slot.start(ctx, fn) for _ in range(min(workers, busy + len(queue)) - len(slots))]
+    slots += new
+    for slot in new:  # started together, awaited together
+        slot.ready()
     for slot in slots:
         if slot.item is None and queue:
             item = queue.popleft()

@@ -71,3 +71,18 @@ class Slow(_Zero):
     def act(self, observations):
         time.sleep(0.05)
         return {agent: np.zeros(2, dtype=np.float32) for agent in observations}
+
+
+def _refuse_to_unpickle() -> None:
+    raise RuntimeError("this runner cannot be rebuilt in a worker process")
+
+
+class UnstartableRunner:
+    """A runner (task -> row) that pickles here but fails while a worker unpickles it, so the
+    worker dies before it is ready."""
+
+    def __reduce__(self):
+        return _refuse_to_unpickle, ()
+
+    def __call__(self, task):
+        return {}

@@ -69,6 +69,15 @@ def test_runner_arguments_are_checked_before_anything_is_written(tmp_path):
     assert not out.exists()
 
 
+def test_workers_that_cannot_start_are_a_clear_error_not_failed_episodes(tmp_path):
+    from faulty_policies import UnstartableRunner
+
+    with pytest.raises(ChildProcessError, match="could not start"):
+        run_suite([PolicySpec("reynolds")], suite_from_dict(SUITE), tmp_path, workers=2,
+                  progress=False, runner=UnstartableRunner())
+    assert not (tmp_path / ERRORS).exists()
+
+
 def test_ray_backend_isolates_failures_like_the_process_backend(tmp_path):
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,

@@ -37,15 +37,15 @@ def test_resume_skips_finished_episodes(tmp_path):
         return run_task(task)
 
     first = run_suite([PolicySpec("reynolds")], suite.with_seeds(1), tmp_path, workers=1,
-                      progress=False, runner=counting)
+                      progress=False, runner=counting, backend="inline")
     assert len(calls) == 2 and len(first) == 2
     calls.clear()
     second = run_suite([PolicySpec("reynolds")], suite, tmp_path, workers=1, progress=False,
-                       runner=counting)
+                       runner=counting, backend="inline")
     assert len(calls) == 2 and len(second) == 4  # only the new seed ran
     calls.clear()
     run_suite([PolicySpec("reynolds")], suite, tmp_path, workers=1, progress=False,
-              runner=counting)
+              runner=counting, backend="inline")
     assert calls == []
     assert len(read_jsonl(tmp_path / EPISODES)) == 4
 
@@ -61,7 +61,7 @@ def test_shared_configurations_run_once(tmp_path):
         return run_task(task)
 
     table = run_suite([PolicySpec("reynolds")], suite_from_dict(spec), tmp_path, workers=1,
-                      progress=False, runner=counting)
+                      progress=False, runner=counting, backend="inline")
     assert sorted(calls) == ["a", "c"] and list(table["case"]) == ["a", "b", "c"]
     assert table["V_align"].iloc[0] == table["V_align"].iloc[1]
 
@@ -75,7 +75,7 @@ def test_a_crashing_episode_is_reported_and_the_others_kept(tmp_path, capsys):
     assert list(table["case"]) == ["ok", "ok2"] and set(table["policy"]) == {"reynolds[paper]"}
     errors = read_jsonl(tmp_path / ERRORS)
     assert len(errors) == 2 and all("cannot import policy" in e["error"] for e in errors)
-    assert "failed" in capsys.readouterr().out
+    assert "episode failed" in capsys.readouterr().err
 
 
 def test_runner_bad_arguments(tmp_path):
