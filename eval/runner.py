@@ -295,6 +295,11 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
     if not isinstance(suite, Suite):
         raise TypeError(f"suite must be a Suite, got {type(suite).__name__}")
     policies = distinct_policies(policies)
+    if runner is None:  # a bad spec is refused here, not found failing in every episode
+        from boids_env.policies.registry import check_policy_spec
+
+        for policy in policies:
+            check_policy_spec(policy.spec, policy.preset)
     run = runner or run_task
     if backend == "process":
         try:

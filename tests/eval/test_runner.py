@@ -66,16 +66,28 @@ def test_shared_configurations_run_once(tmp_path):
     assert table["V_align"].iloc[0] == table["V_align"].iloc[1]
 
 
-def test_a_crashing_episode_is_reported_and_the_others_kept(tmp_path, capsys):
-    # The second policy cannot be imported: its episodes fail inside the workers.
+def test_a_policy_that_cannot_load_is_refused_before_anything_is_written(tmp_path):
+    # Before, each of its episodes failed in the workers after the folder was made.
     spec = {"name": "crash", "seeds": 1, "defaults": {"robots": 5, "max_cycles": 20},
             "case": [{"name": "ok", "leader_speed": 0.55}, {"name": "ok2", "leader_speed": 0.6}]}
-    table = run_suite([PolicySpec("reynolds"), PolicySpec("no_such_module:policy")],
-                      suite_from_dict(spec), tmp_path, workers=2, progress=False)
-    assert list(table["case"]) == ["ok", "ok2"] and set(table["policy"]) == {"reynolds[paper]"}
-    errors = read_jsonl(tmp_path / ERRORS)
-    assert len(errors) == 2 and all("cannot import policy" in e["error"] for e in errors)
-    assert "episode failed" in capsys.readouterr().err
+    out = tmp_path / "out"
+    with pytest.raises(ValueError, match="cannot import policy 'no_such_module:policy'"):
+        run_suite([PolicySpec("reynolds"), PolicySpec("no_such_module:policy")],
+                  suite_from_dict(spec), out, workers=2, progress=False)
+    with pytest.raises(FileNotFoundError, match=r"missing\.zip"):
+        run_suite([PolicySpec(str(tmp_path / "missing.zip"))], suite_from_dict(spec), out)
+    assert not out.exists()
+
+
+def test_module_class_specs_run_in_the_eval_workers(tmp_path):
+    # Issue 14 item 3: a Policy class given as module:Class is built in each worker.
+    suite = suite_from_dict({**TINY, "seeds": 1})
+    ours = run_suite([PolicySpec("reynolds"),
+                      PolicySpec("boids_env.policies.reynolds:ReynoldsPolicy")], suite,
+                     tmp_path, workers=2, progress=False)
+    assert not read_jsonl(tmp_path / ERRORS)
+    by = {p: g.sort_values("case")["V_align"].tolist() for p, g in ours.groupby("policy")}
+    assert by["boids_env.policies.reynolds:ReynoldsPolicy"] == by["reynolds[paper]"]
 
 
 def test_runner_bad_arguments(tmp_path):
