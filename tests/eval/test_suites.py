@@ -63,3 +63,49 @@ def test_bad_toml_suites_are_clear_errors(tmp_path, text, match):
 def test_unknown_suite_name():
     with pytest.raises(FileNotFoundError, match="paper"):
         load_suite("nope")
+
+
+CASE = '[[case]]\nname = "a"\n'
+
+
+@pytest.mark.parametrize("text, match", [
+    # Before: AttributeError / TypeError / 'float' object is not iterable, from deep inside.
+    ('factor = "x"\n', r"factor must be an array of tables \(\[\[factor\]\] sections\), "
+                       r"got 'x'"),
+    ('case = 5\n', r"case must be an array of tables \(\[\[case\]\] sections\), got 5"),
+    ('seeds = 3.5\n' + CASE, r"seeds must be a count in \[1, 10000\] .*got 3.5"),
+    ('seeds = "3"\n' + CASE, r"seeds must be a count .*got '3'"),
+    ('seeds = [0, 0]\n' + CASE, r"seeds must be distinct, got \[0\]"),
+    ('seeds = [-1]\n' + CASE, r"seeds must be .*got \[-1\]"),
+    ('seeds = 0\n' + CASE, r"seeds must be a count in \[1, 10000\]"),
+    ('defaults = 5\n' + CASE, r"defaults must be a table"),
+    ('per_follower = "rq3"\n' + CASE, r"per_follower must be a list of group names"),
+    ('per_follower = ["rq9"]\n' + CASE, r"per_follower names group\(s\) \['rq9'\]"),
+    ('[[factor]]\nname = 5\nlevels = [1]\n', r"factor 1: name must be the field to sweep"),
+    ('[[factor]]\nname = "robots"\nlevels = 7\n', r"levels must be a non-empty list"),
+    ('[[factor]]\nname = "robots"\nlevel = [7]\n', r"factor 1: unknown key\(s\) \['level'\]"),
+    ('[[case]]\nname = ["a"]\n', r"case 1: name must be a string"),
+    ('name = 3\n' + CASE, r"name must be a non-empty string, got 3"),
+])
+def test_mistakes_in_a_suite_file_name_the_key_and_what_is_allowed(tmp_path, text, match):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match) as info:
+        load_suite(path)
+    assert str(path) in str(info.value)
+
+
+def test_a_huge_seed_count_is_refused_at_once(tmp_path, capsys):
+    import time
+
+    from boids_env.eval.suites import MAX_SEEDS
+    from boids_env.train.cli import main
+
+    start = time.perf_counter()
+    with pytest.raises(ValueError, match=r"seeds must be a count in \[1, 10000\]"):
+        PAPER.with_seeds(10_000_000)
+    assert main(["eval", "--seeds", "10000000", "--out", str(tmp_path / "out")]) == 2
+    assert time.perf_counter() - start < 5
+    assert "seeds must be a count in [1, 10000]" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+    assert len(PAPER.with_seeds(MAX_SEEDS).seeds) == MAX_SEEDS
