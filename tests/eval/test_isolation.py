@@ -83,8 +83,10 @@ def test_ray_backend_isolates_failures_like_the_process_backend(tmp_path):
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
              runtime_env={"env_vars": {"PYTHONPATH": str(HERE)}})
     try:
+        # Ray times a task from its submission (at most `workers` in flight): leave room for
+        # a worker's first import on a loaded machine.
         table = _run(tmp_path, "RaisesSystemExit", "ExitsProcess", "Hangs", backend="ray",
-                     episode_timeout=5)
+                     episode_timeout=12)
     finally:
         ray.shutdown()
     failed = _failed(tmp_path)
