@@ -191,7 +191,8 @@ class _Slot:
         self.kill()
         for conn in (self.conn, self.alive):
             conn.close()
-        self.process.close()
+        if self.process.exitcode is not None:  # else it is stuck in the kernel: leave it
+            self.process.close()
 
 
 OnResult = Callable[[Any, bool, dict[str, Any]], None]

@@ -82,11 +82,14 @@ def test_ray_backend_isolates_failures_like_the_process_backend(tmp_path):
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
              runtime_env={"env_vars": {"PYTHONPATH": str(HERE)}})
+    suite = suite_from_dict(SUITE)
     try:
         # Ray times a task from its submission (at most `workers` in flight): leave room for
         # a worker's first import on a loaded machine.
         table = _run(tmp_path, "RaisesSystemExit", "ExitsProcess", "Hangs", backend="ray",
                      episode_timeout=12)
+        remote = run_suite([PolicySpec("reynolds")], suite, tmp_path / "r", backend="ray",
+                           progress=False)
     finally:
         ray.shutdown()
     failed = _failed(tmp_path)
@@ -94,6 +97,10 @@ def test_ray_backend_isolates_failures_like_the_process_backend(tmp_path):
         ("ExitsProcess", 1, "worker died"), ("Hangs", 1, "timeout"),
         ("RaisesSystemExit", 1, "exception")], failed
     assert len(table) == 6 and set(table["seed"]) == {0, 2}
+    # and the rows it does produce are the process backend's
+    local = run_suite([PolicySpec("reynolds")], suite, tmp_path / "p", workers=1,
+                      progress=False)
+    assert remote["V_align"].tolist() == local["V_align"].tolist()
 
 
 def test_boids_eval_exits_1_and_the_report_lists_failed_episodes(tmp_path, capsys):

@@ -1,6 +1,5 @@
 """The suite runner: determinism across worker counts, resume, crash isolation."""
 
-import json
 
 import pandas as pd
 import pytest
@@ -96,17 +95,3 @@ def test_runner_bad_arguments(tmp_path):
         run_suite([PolicySpec("reynolds")], suite, tmp_path, workers=0)
     with pytest.raises(ValueError, match="backend"):
         run_suite([PolicySpec("reynolds")], suite, tmp_path, backend="slurm")
-
-
-def test_ray_backend_in_local_mode(tmp_path):
-    ray = pytest.importorskip("ray")
-    suite = suite_from_dict({**TINY, "seeds": 1})
-    local = run_suite([PolicySpec("reynolds")], suite, tmp_path / "p", workers=1,
-                      progress=False)
-    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
-    try:
-        remote = run_suite([PolicySpec("reynolds")], suite, tmp_path / "r", backend="ray",
-                           progress=False)
-    finally:
-        ray.shutdown()
-    assert json.dumps(sorted(local["V_align"])) == json.dumps(sorted(remote["V_align"]))
