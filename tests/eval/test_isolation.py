@@ -86,7 +86,7 @@ def test_ray_backend_isolates_failures_like_the_process_backend(tmp_path):
     try:
         # Ray times a task from its submission (at most `workers` in flight): leave room for
         # a worker's first import on a loaded machine.
-        table = _run(tmp_path, "RaisesSystemExit", "ExitsProcess", "Hangs", backend="ray",
+        table = _run(tmp_path, "Hangs", "RaisesSystemExit", "ExitsProcess", backend="ray",
                      episode_timeout=12)
         remote = run_suite([PolicySpec("reynolds")], suite, tmp_path / "r", backend="ray",
                            progress=False)
