@@ -320,18 +320,18 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
     bar = _progress(len(tasks), len(tasks) - len(todo), progress)
 
     def record(task: Task, ok: bool, row: dict[str, Any]) -> None:
-        if ok and not isinstance(row, dict):
-            ok, row = False, {"reason": "exception", "error": f"the runner returned "
-                              f"{type(row).__name__}, not a dict of metrics"}
-        row.pop("fatal", None)
-        if ok:
-            row["key"] = task.key
-            append_line(out / EPISODES, json.dumps(row))
-            done[row["key"]] = row
+        line = _episode_line(task, row) if ok else None
+        if line is not None:
+            append_line(out / EPISODES, line)
+            done[task.key] = json.loads(line)
         else:
+            if ok:
+                row = {"reason": "exception", "error": f"the runner returned "
+                       f"{type(row).__name__} that is not a JSON object of metrics"}
             row = {"key": task.key, "policy": task.policy.label, "case": task.case.name,
-                   "cases": cases_of[task.key], "seed": task.seed, **row}
-            append_line(out / ERRORS, json.dumps(row))
+                   "cases": cases_of[task.key], "seed": task.seed,
+                   **{k: v for k, v in row.items() if k != "fatal"}}
+            append_line(out / ERRORS, json.dumps(row, default=str))
             errors.append(row)
         bar.update(1)
 
@@ -345,6 +345,24 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
         table = results_table(tasks, done, suite)
         _write_results(out, table, suite, policies)
     return table
+
+
+def _episode_line(task: Task, row: Any) -> str | None:
+    """The ``episodes.jsonl`` line of a finished episode (its key set), or None when the row
+    is not a JSON object (a custom runner's mistake)."""
+    if not isinstance(row, dict):
+        return None
+    try:
+        return json.dumps({**row, "key": task.key}, default=_plain)
+    except (TypeError, ValueError):
+        return None
+
+
+def _plain(value: Any) -> Any:
+    """numpy scalars and arrays as plain numbers and lists (json.dumps' fallback)."""
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
 
 
 def _cases_of(tasks: Sequence[Task], suite: Suite) -> dict[str, list[str]]:

@@ -116,3 +116,15 @@ def test_boids_eval_exits_1_and_the_report_lists_failed_episodes(tmp_path, capsy
     report = (out / "report.md").read_text()
     assert "## Failed episodes" in report
     assert "faulty_policies:RaisesSystemExit" in report and "SystemExit: 3" in report
+
+
+def test_boids_eval_exits_1_when_every_episode_failed(tmp_path, capsys):
+    suite = tmp_path / "faulty.toml"
+    suite.write_text('name = "faulty"\nseeds = [1]\n[defaults]\nrobots = 3\n'
+                     'max_cycles = 10\n[[case]]\nname = "one"\n')
+    out = tmp_path / "out"
+    code = main(["eval", "--policy", "faulty_policies:ExitsProcess", "--suite", str(suite),
+                 "--workers", "1", "--out", str(out), "--no-progress"])
+    assert code == 1
+    assert "all 1 episodes failed" in capsys.readouterr().err
+    assert read_jsonl(out / ERRORS)[0]["reason"] == "worker died"

@@ -95,3 +95,12 @@ def test_runner_bad_arguments(tmp_path):
         run_suite([PolicySpec("reynolds")], suite, tmp_path, workers=0)
     with pytest.raises(ValueError, match="backend"):
         run_suite([PolicySpec("reynolds")], suite, tmp_path, backend="slurm")
+
+
+def test_a_runner_row_that_is_not_json_is_a_failed_episode_not_a_crash(tmp_path):
+    suite = suite_from_dict({**TINY, "seeds": 1})
+    table = run_suite([PolicySpec("reynolds")], suite, tmp_path, backend="inline",
+                      progress=False, runner=lambda task: {"V_sep": object()})
+    assert table.empty and pd.read_parquet(tmp_path / "results.parquet").empty
+    errors = read_jsonl(tmp_path / ERRORS)
+    assert len(errors) == 2 and all("not a JSON object" in e["error"] for e in errors)
