@@ -10,6 +10,8 @@ file or folder the evaluation wrote. It is written (atomically) before anything 
 from __future__ import annotations
 
 import json
+import os
+import re
 import shutil
 from collections.abc import Iterable
 from pathlib import Path
@@ -66,8 +68,35 @@ def _ours(out: Path, manifest: dict[str, Any] | None) -> list[Path]:
         names = []
     # Names are top-level entries: never follow one out of the folder.
     safe = [n for n in dict.fromkeys(names) if n and "/" not in n and n not in (".", "..")]
-    leftovers = [p.name for p in out.glob(".*.tmp-*")]  # atomic writes cut short
+    leftovers = [p.name for p in stale_temporaries(out)]
     return [out / n for n in [*safe, *leftovers] if (out / n).exists() or (out / n).is_symlink()]
+
+
+_TEMPORARY = re.compile(r"^\..+\.tmp-(\d+)-[0-9a-f]+$")
+
+
+def stale_temporaries(folder: Path) -> list[Path]:
+    """Temporary files of atomic writes (``boids_env.files``) in ``folder`` whose writing
+    process is gone: what a kill in the middle of a write leaves behind."""
+    stale = []
+    for path in folder.glob(".*.tmp-*"):
+        match = _TEMPORARY.match(path.name)
+        if match is None:
+            continue
+        try:
+            os.kill(int(match.group(1)), 0)
+        except ProcessLookupError:
+            stale.append(path)
+        except (PermissionError, OverflowError):
+            continue  # alive (another user's) or not a pid: leave it
+    return stale
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    else:
+        path.unlink(missing_ok=True)
 
 
 def claim(out: Path, identity: dict[str, Any], *, overwrite: bool = False) -> bool:
@@ -83,6 +112,8 @@ def claim(out: Path, identity: dict[str, Any], *, overwrite: bool = False) -> bo
     manifest = read_manifest(out) if out.is_dir() else None
     same = manifest is not None and _normal(manifest.get("identity", {})) == _normal(identity)
     if same and not overwrite:
+        for path in [*stale_temporaries(out), *stale_temporaries(out / "trajectories")]:
+            _remove(path)
         return True
     entries = [p for p in out.iterdir()] if out.is_dir() else []
     if entries and not overwrite:
@@ -97,10 +128,7 @@ def claim(out: Path, identity: dict[str, Any], *, overwrite: bool = False) -> bo
         raise ValueError(f"output folder {out} {why}; pass --overwrite (overwrite=True) to "
                          f"replace our earlier outputs there, or choose another --out")
     for path in _ours(out, manifest):
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path)
-        else:
-            path.unlink()
+        _remove(path)
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / MANIFEST, {"kind": KIND, "identity": identity,
                                 "files": list(RUNNER_OUTPUTS)})

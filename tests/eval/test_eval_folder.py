@@ -3,6 +3,7 @@
 files are named by policy, case and seed, and damaged files never break a report or a rerun."""
 
 import json
+import os
 from pathlib import Path
 
 import pandas as pd
@@ -148,3 +149,13 @@ def test_results_survive_a_full_disk(tmp_path, monkeypatch):
     monkeypatch.undo()
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "results.parquet"), before)
     assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
+
+
+def test_temporaries_left_by_a_killed_write_are_cleared_on_resume(tmp_path):
+    _run(tmp_path, {**TINY, "seeds": 1})
+    dead = tmp_path / ".results.parquet.tmp-999999999-0123abcd"  # no such process
+    dead.write_bytes(b"PAR1 torn")
+    live = tmp_path / "trajectories" / f".x.parquet.tmp-{os.getpid()}-0123abcd"
+    live.write_bytes(b"being written")
+    _run(tmp_path)
+    assert not dead.exists() and live.exists()
