@@ -10,6 +10,7 @@ message per robot per control step, stamped with the episode time. Pure Python t
 from __future__ import annotations
 
 import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +34,8 @@ _TOPIC = re.compile(r"^/robot_(\d+)/(odom|cmd_vel)$")
 FORMATS = ("ros1", "mcap")
 
 
-def write_bag(recording: Recording, path: str | Path, *, format: str = "ros1") -> None:
+def write_bag(recording: Recording, path: str | Path, *, format: str = "ros1",
+              start: float | None = None) -> None:
     """Writes ``recording`` at ``path`` (which must not exist): ``ros1``, a ROS 1 bag file
     (Noetic message definitions), or ``mcap``, a ROS 2 bag folder with MCAP storage (Humble
     definitions, CDR)."""
@@ -56,8 +58,9 @@ def write_bag(recording: Recording, path: str | Path, *, format: str = "ros1") -
                 for k in range(n)]
         cmd = [writer.add_connection(f"/robot_{k}/cmd_vel", TWIST, typestore=store)
                for k in range(n)]
-        for step, time in enumerate(recording.time):
-            ns = round(float(time) * 1e9)
+        origin = round((time.time() if start is None else start) * 1e9)
+        for step, offset in enumerate(recording.time):
+            ns = origin + round(float(offset) * 1e9)
             stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
             for k in range(n):
                 x, y = (float(v) for v in recording.positions[step, k])
@@ -126,6 +129,7 @@ def read_bag(path: str | Path, config: EnvConfig | None = None) -> Recording:
     if base.scenario.robots != len(robots):
         base = base.replace(robots=len(robots), arena_half_size=max(
             base.world.arena_half_size, float(np.abs(o[:, :, 1:3]).max()) + 1.0))
-    time = o[0, :, 0] / 1e9  # stamps (ns) of robot 0's odometry
-    return Recording(base, time, o[:, :, 1:3].transpose(1, 0, 2), o[:, :, 3:5].transpose(1, 0, 2),
-                     c.transpose(1, 0, 2))
+    # robot 0's odometry stamps (exact integers, ns): times from the first
+    stamps = np.array([row[0] for row in odom[0][:steps]], dtype=np.int64)
+    return Recording(base, (stamps - stamps[0]) / 1e9, o[:, :, 1:3].transpose(1, 0, 2),
+                     o[:, :, 3:5].transpose(1, 0, 2), c.transpose(1, 0, 2))

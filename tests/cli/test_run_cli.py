@@ -38,6 +38,25 @@ def test_boids_run_writes_every_file(tmp_path):
     assert read_bag(out / "episode_mcap").metrics()["V_align"] == metrics["V_align"]
     frames = iio.imread(out / "episode.gif")
     assert frames.ndim == 4 and frames.shape[0] >= 20
+    assert "video" in proc.stdout and "writing took" in proc.stdout, proc.stdout
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert set(manifest["files"]) == files - {"manifest.json"}, manifest
+
+    # the same command again: refused with a clear message, the folder untouched
+    again = [sys.executable, "-m", "boids_env.train.cli", "run", "--robots", "7",
+             "--max-cycles", "20", "--seed", "4", "--bag", "--out", str(out)]
+    proc = subprocess.run(again, capture_output=True, text=True, env=env, timeout=300,
+                          check=False)
+    assert proc.returncode == 2 and "--overwrite" in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert json.loads((out / "metrics.json").read_text()) == metrics
+    # with --overwrite: exactly the new run's files, no stale GIF or MCAP bag beside them
+    proc = subprocess.run([*again, "--overwrite"], capture_output=True, text=True, env=env,
+                          timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert {p.name for p in out.iterdir()} == {"metrics.json", "trajectory.parquet",
+                                              "config.json", "episode.bag", "manifest.json"}
+    assert read_bag(out / "episode.bag").metrics()["steps"] == 20
 
 
 def test_boids_run_bad_argument_is_a_clear_error(tmp_path, capsys):
