@@ -10,7 +10,6 @@ opens a window and raises :class:`NoDisplayError` when there is no display (set
 
 from __future__ import annotations
 
-import os
 import re
 from dataclasses import dataclass, field
 from typing import Any
@@ -19,44 +18,35 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env import style
+from boids_env.drawing import (
+    ARENA,
+    BACKGROUND,
+    GRID,
+    GRID_LABEL,
+    HEIGHT,
+    HORIZON,
+    MARGIN,
+    MESSAGE,
+    MIN_RADIUS,
+    MUTED,
+    OUTSIDE,
+    PANEL,
+    PANEL_BACKGROUND,
+    TEXT,
+    WALL,
+    WIDTH,
+    NoDisplayError,
+    blend,
+    darker,
+    draw_arrow,
+    grid_step,
+    open_window,
+    pygame,
+    wrap_text,
+)
 from boids_env.metrics import CONTACT_TOLERANCE, contact_pairs
 
-try:
-    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
-    import pygame
-except ImportError as exc:  # pragma: no cover - depends on the install
-    raise ImportError("rendering needs pygame-ce: pip install 'boids-env[render]'") from exc
-
-ARENA = 640
-"""Side of the arena drawing (px), its margin included."""
-PANEL = 272
-"""Width of the panel beside the arena (px)."""
-WIDTH, HEIGHT = ARENA + PANEL, ARENA
-"""Frame size (px): both multiples of 16, as video encoders want."""
-MARGIN = 24
-"""Space around the arena's walls (px), where the grid's labels go."""
-MIN_RADIUS = 5
-"""Smallest drawn robot radius (px): a 36 mm robot is 2 px at the default scale, so it is
-drawn larger (the panel says by how much) with its true size as a dark core."""
-BACKGROUND = (255, 255, 255)
-OUTSIDE = (236, 236, 233)
-"""Beyond the walls."""
-PANEL_BACKGROUND = (241, 241, 237)
-GRID = (226, 226, 222)
-GRID_LABEL = (150, 150, 150)
-WALL = (40, 40, 40)
-TEXT = (25, 25, 25)
-MUTED = (95, 95, 95)
-HORIZON = (200, 215, 235)
-MESSAGE = (160, 30, 30)
-# kept as names of this module for callers that drew with them
-LEADER, FOLLOWER, TRAIL = style.LEADER, style.FOLLOWER, style.TRAIL
-ARROW_COLOURS = style.RULE_COLOURS
-ARROW_SCALE, ARROW_MAX = style.ARROW_SCALE, style.ARROW_MAX
-
-
-class NoDisplayError(RuntimeError):
-    """A window was asked for where there is no display."""
+__all__ = ["VIEWS", "NoDisplayError", "Renderer", "Scene"]
 
 
 @dataclass(frozen=True)
@@ -288,7 +278,7 @@ class Renderer:
             colour = style.LEADER if k == 0 else style.FOLLOWER
             pygame.draw.circle(canvas, colour, centre, radius)
             if true < radius - 1.5:  # the true size, as a dark core
-                pygame.draw.circle(canvas, _darker(colour), centre, max(1, round(true)))
+                pygame.draw.circle(canvas, darker(colour), centre, max(1, round(true)))
             if k in touching:
                 pygame.draw.circle(canvas, style.CONTACT, centre, radius + 2, 2)
 
@@ -307,7 +297,8 @@ class Renderer:
         left, width = ARENA + 14, PANEL - 26
         y = 12
         y = self._text(canvas, "boids-env", (left, y), 26, TEXT) + 6
-        for item in [s for s in re.split(r"\s{3,}", scene.status.strip()) if s]:
+        status = re.sub(r"=\s+", "= ", scene.status.strip())  # "t =   4.5 s" is one item
+        for item in [s for s in re.split(r"\s{3,}", status) if s]:
             y = self._text(canvas, item, (left, y), 21, TEXT)
         y = self._text(canvas, f"touching pairs {touching}", (left, y), 21,
                        TEXT if touching == 0 else (170, 60, 0)) + 10
@@ -321,7 +312,7 @@ class Renderer:
         if self.message and self.message_opacity > 0:
             lines = wrap_text(self.message, self._fonts[19], width)
             y = HEIGHT - 10 - 17 * len(lines)
-            colour = _blend(MESSAGE, PANEL_BACKGROUND, self.message_opacity)
+            colour = blend(MESSAGE, PANEL_BACKGROUND, self.message_opacity)
             for part in lines:
                 y = self._text(canvas, part, (left, y), 19, colour)
 
@@ -398,77 +389,3 @@ class Renderer:
         if self._window is not None:
             pygame.display.quit()
             self._window = None
-
-
-def open_window(size: tuple[int, int], caption: str) -> Any:
-    """Opens the pygame window; raises :class:`NoDisplayError` where SDL found no display and
-    fell back, unasked, to its off-screen driver (a window nobody would ever see)."""
-    pygame.display.init()
-    driver = pygame.display.get_driver()
-    if driver in ("offscreen", "dummy") and not os.environ.get("SDL_VIDEODRIVER"):
-        pygame.display.quit()
-        shown = os.environ.get("DISPLAY") or "not set"
-        raise NoDisplayError(
-            f"no display for the live window (DISPLAY is {shown}, WAYLAND_DISPLAY is "
-            f"{os.environ.get('WAYLAND_DISPLAY') or 'not set'}; SDL could only open its "
-            f"{driver!r} driver). Run it on a desktop (or ssh -X), or write a video instead: "
-            f"boids run --video; set SDL_VIDEODRIVER=dummy to run the window invisibly on "
-            f"purpose.")
-    window = pygame.display.set_mode(size)
-    pygame.display.set_caption(caption)
-    return window
-
-
-def grid_step(half: float, scale: float) -> float:
-    """Grid spacing (m): 1 m, or the smallest of 2, 5, 10 … m whose lines are 28 px apart."""
-    for step in (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0):
-        if step * scale >= 28:
-            return step
-    return 2 * half
-
-
-def draw_arrow(canvas: Any, colour: tuple[int, int, int], start: npt.ArrayLike,
-               end: npt.ArrayLike, width: int = 2, head: float = 7.0) -> None:
-    """An arrow from ``start`` to ``end`` (px) with a filled head; nothing if shorter than
-    1 px, no head below 4 px."""
-    a, b = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
-    d = b - a
-    length = float(np.hypot(*d))
-    if length < 1:
-        return
-    u = d / length
-    size = min(head, 0.6 * length)
-    base = b - u * size
-    pygame.draw.line(canvas, colour, a.round(), (base + u).round(), width)
-    if length >= 4:
-        n = np.array([-u[1], u[0]]) * size * 0.55
-        pygame.draw.polygon(canvas, colour, [b.round(), (base + n).round(),
-                                             (base - n).round()])
-
-
-def wrap_text(text: str, font: Any, width: int) -> list[str]:
-    """``text`` broken at spaces into lines no wider than ``width`` px (a longer word gets a
-    line of its own)."""
-    lines: list[str] = []
-    current = ""
-    for word in text.split():
-        trial = f"{current} {word}" if current else word
-        if current and font.size(trial)[0] > width:
-            lines.append(current)
-            current = word
-        else:
-            current = trial
-    if current:
-        lines.append(current)
-    return lines
-
-
-def _darker(colour: tuple[int, int, int]) -> tuple[int, int, int]:
-    r, g, b = colour
-    return (int(r * 0.45), int(g * 0.45), int(b * 0.45))
-
-
-def _blend(colour: tuple[int, int, int], background: tuple[int, int, int], opacity: float
-           ) -> tuple[int, int, int]:
-    o = min(max(opacity, 0.0), 1.0)
-    return tuple(round(o * c + (1 - o) * b) for c, b in zip(colour, background, strict=True))

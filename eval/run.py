@@ -40,6 +40,8 @@ def metrics_table(metrics: dict[str, Any]) -> str:
         if key not in metrics:
             continue
         value = metrics[key]
+        if isinstance(value, float) and key.startswith("contacts_") and value.is_integer():
+            value = int(value)  # a count
         shown = f"{value:.4f}" if isinstance(value, float) else str(value)
         lines.append(f"{key:<24} {shown:>10}  {meaning}")
     return "\n".join(lines)
@@ -110,7 +112,7 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
 
             info = write_video(result.recording, tmp / f"episode.{fmt}",
                                frame_every=frame_every, progress=progress and not quiet)
-            timings.append(f"video {info.seconds:.1f} s ({info.frames} frames)")
+            timings.append(f"video {info.seconds:.1f} s for {info.frames} frames")
         if bag or mcap:
             from boids_env.rosbag import write_bag
 

@@ -24,6 +24,12 @@ def test_parquet_round_trip_reproduces_metrics(tmp_path):
     assert back.metrics() == rec.metrics()
     np.testing.assert_array_equal(back.leader_path, rec.leader_path)
     assert back.extra == {"seed": 2}
+    # the policy's rule forces behind every command (zero at reset), for videos and markers
+    assert set(rec.forces) == {"separation", "cohesion", "alignment", "leader"}
+    assert rec.forces["leader"].shape == (len(rec.time), 6, 2)
+    assert not rec.forces["leader"][0].any() and rec.forces["leader"][-1].any()
+    for name, vec in rec.forces.items():
+        assert np.array_equal(back.forces[name], vec), name
 
 
 @pytest.mark.parametrize("fmt, name", [("ros1", "ep.bag"), ("mcap", "ep_mcap")])
