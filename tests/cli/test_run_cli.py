@@ -64,3 +64,16 @@ def test_boids_run_bad_argument_is_a_clear_error(tmp_path, capsys):
 
     assert main(["run", "--leader-speed", "-1", "--out", str(tmp_path)]) == 2
     assert "leader_speed must be in" in capsys.readouterr().err
+
+
+def test_bag_start_takes_iso_or_unix_seconds():
+    import argparse
+
+    from boids_env.eval.cli import parse_start
+
+    assert parse_start("2024-05-01T12:00:00") == 1714564800.0, "UTC when no offset is given"
+    assert parse_start("2024-05-01T14:00:00+02:00") == 1714564800.0
+    assert parse_start("1714564800.5") == 1714564800.5
+    for bad in ("yesterday", "-5", "1e12"):
+        with pytest.raises(argparse.ArgumentTypeError, match="--bag-start"):
+            parse_start(bad)

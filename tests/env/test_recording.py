@@ -46,10 +46,11 @@ def test_ros_bag_round_trip_reproduces_metrics(tmp_path, fmt, name):
     assert np.array_equal(back.positions, rec.positions)
     assert np.array_equal(back.commanded, rec.commanded)
     assert np.allclose(back.time, rec.time, atol=1e-9)
-    # a bag has no leader path (the deviation is NaN); every other metric is exact
-    path_keys = {"leader_path_deviation", "leader_path_deviation_max"}
-    ours = {k: v for k, v in back.metrics().items() if k not in path_keys}
-    assert ours == {k: v for k, v in rec.metrics().items() if k not in path_keys}
+    np.testing.assert_array_equal(back.leader_path, rec.leader_path)  # from /leader/path
+    got, want = back.metrics(), rec.metrics()
+    assert got.keys() == want.keys()
+    for key in want:  # every metric, exactly (the leader's path deviation included)
+        assert got[key] == want[key], (key, got[key], want[key])
 
 
 def test_unreadable_bag(tmp_path):
