@@ -44,6 +44,10 @@ class Recording:
     leader_path: FloatArray | None = None
     """The leader's scripted path as a polyline (M, 2) (None when unknown or external), for
     its path deviation."""
+    forces: dict[str, FloatArray] | None = None
+    """Per-follower vectors behind each sample's command, by name, each (T+1, N-1, 2): the
+    Reynolds policy's weighted rule forces (N; the leader term in m), zero at reset; None
+    when the policy exposes none. Drawn as arrows in videos and ROS bag markers."""
 
     def metrics(self) -> dict[str, Any]:
         """The episode's V_*, extra flock and safety metrics, from the samples after each
@@ -72,6 +76,11 @@ class Recording:
             "vx": self.velocities[..., 0].ravel(), "vy": self.velocities[..., 1].ravel(),
             "cmd_vx": self.commanded[..., 0].ravel(), "cmd_vy": self.commanded[..., 1].ravel(),
         }
+        for name, vec in (self.forces or {}).items():
+            full = np.full((steps, n, 2), np.nan)  # the leader's rows: NaN
+            full[:, 1:] = vec
+            cols[f"force_{name}_x"] = full[..., 0].ravel()
+            cols[f"force_{name}_y"] = full[..., 1].ravel()
         table = pa.table(cols)
         meta = {"config": self.config.to_dict(), "extra": self.extra,
                 "leader_path": None if self.leader_path is None else self.leader_path.tolist()}
@@ -120,8 +129,14 @@ class Recording:
         def pair(a: str, b: str) -> FloatArray:
             return np.stack([data[a][order], data[b][order]], axis=1).reshape(steps, n, 2)
 
+        names = [c[len("force_"):-2] for c in table.column_names
+                 if c.startswith("force_") and c.endswith("_x")]
+        data.update({c: table.column(c).to_numpy().astype(np.float64)
+                     for c in table.column_names if c.startswith("force_")})
+        forces = {name: pair(f"force_{name}_x", f"force_{name}_y")[:, 1:].copy()
+                  for name in names} or None
         return cls(config, time[:, 0].copy(), pair("x", "y"), pair("vx", "vy"),
-                   pair("cmd_vx", "cmd_vy"), extra, leader_path)
+                   pair("cmd_vx", "cmd_vy"), extra, leader_path, forces)
 
 
 def _read_meta(path: Path, raw: bytes) -> tuple[EnvConfig, dict[str, Any], FloatArray | None]:
@@ -207,6 +222,7 @@ class Recorder:
         self._pos: list[FloatArray] = []
         self._vel: list[FloatArray] = []
         self._cmd: list[FloatArray] = []
+        self._forces: list[dict[str, FloatArray]] = []
 
     def capture(self, env: BoidsEnv) -> None:
         world = env._require_world()
@@ -214,9 +230,24 @@ class Recorder:
         self._pos.append(world.positions.copy())
         self._vel.append(world.velocities.copy())
         self._cmd.append(world.commanded.copy())
+        self._forces.append({k: np.array(v, dtype=float) for k, v in env.overlays.items()})
 
     def recording(self, env: BoidsEnv, **extra: Any) -> Recording:
         path = env.leader.reference_path()
         return Recording(env.episode_config, np.array(self._time), np.array(self._pos),
                          np.array(self._vel), np.array(self._cmd), dict(extra),
-                         None if path is None else np.asarray(path, dtype=float))
+                         None if path is None else np.asarray(path, dtype=float),
+                         self._stacked_forces())
+
+    def _stacked_forces(self) -> dict[str, FloatArray] | None:
+        """The captured overlays as (T+1, F, 2) arrays (zero where a sample had none)."""
+        names = list(dict.fromkeys(k for f in self._forces for k in f))
+        if not names:
+            return None
+        followers = self._pos[0].shape[0] - 1
+        out = {name: np.zeros((len(self._forces), followers, 2)) for name in names}
+        for i, sample in enumerate(self._forces):
+            for name, vec in sample.items():
+                if vec.shape == (followers, 2):
+                    out[name][i] = vec
+        return out

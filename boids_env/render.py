@@ -1,43 +1,52 @@
-"""pygame renderer: arena, robots, leader trail, horizon circles, force arrows and a HUD.
+"""pygame renderer: the arena with a 1 m grid, robots, contacts, the leader trail, horizon
+circles and rule-force arrows, and beside it a panel with the HUD (time, V_*, touching
+pairs), a legend, a 1 m scale bar, the live window's controls and its messages.
 
-The only module that knows pixels. Works headless: ``rgb_array`` draws on an off-screen
-surface; ``human`` opens a window (set ``SDL_VIDEODRIVER=dummy`` where there is no display).
+The only module that knows pixels; it draws a plain-data :class:`Scene` (the env builds it)
+and imports no env. Works headless: ``rgb_array`` draws on an off-screen surface; ``human``
+opens a window and raises :class:`NoDisplayError` when there is no display (set
+``SDL_VIDEODRIVER=dummy`` to run a window invisibly on purpose, e.g. in tests).
 """
 
 from __future__ import annotations
 
-import os
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-try:
-    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
-    import pygame
-except ImportError as exc:  # pragma: no cover - depends on the install
-    raise ImportError("rendering needs pygame-ce: pip install 'boids-env[render]'") from exc
+from boids_env import style
+from boids_env.drawing import (
+    ARENA,
+    BACKGROUND,
+    GRID,
+    GRID_LABEL,
+    HEIGHT,
+    HORIZON,
+    MARGIN,
+    MESSAGE,
+    MIN_RADIUS,
+    MUTED,
+    OUTSIDE,
+    PANEL,
+    PANEL_BACKGROUND,
+    TEXT,
+    WALL,
+    WIDTH,
+    NoDisplayError,
+    blend,
+    darker,
+    draw_arrow,
+    grid_step,
+    open_window,
+    pygame,
+    wrap_text,
+)
+from boids_env.metrics import CONTACT_TOLERANCE, contact_pairs
 
-SIZE = 640
-"""Side of the arena drawing (px); the HUD strip sits below it."""
-HUD_HEIGHT = 28
-BACKGROUND = (250, 250, 247)
-WALL = (40, 40, 40)
-LEADER = (214, 39, 40)
-FOLLOWER = (31, 119, 180)
-TRAIL = (240, 160, 160)
-HORIZON = (200, 215, 235)
-ARROW_COLOURS = {  # as the original RViz view
-    "alignment": (0, 0, 255),
-    "cohesion": (0, 170, 0),
-    "separation": (230, 0, 0),
-    "leader": (120, 200, 255),
-}
-ARROW_SCALE = 1.0
-"""Metres drawn per unit of an overlay vector (newton for forces, metre for the leader term)."""
-ARROW_MAX = 0.4
-"""Longest arrow drawn (m), so that the raw leader vector does not cover the arena."""
+__all__ = ["VIEWS", "NoDisplayError", "Renderer", "Scene"]
 
 
 @dataclass(frozen=True)
@@ -51,73 +60,120 @@ class Scene:
     robot_radius: float
     """Robot radius (m)."""
     status: str = ""
-    """The HUD line under the arena (time, V_*)."""
+    """The HUD's numbers (``"t = 1.0 s   V_sep 0.000 …"``: items apart by 3+ spaces, one
+    panel line each)."""
     horizon: float = 1.0
     """Neighbour radius (m), drawn around followers when the renderer shows horizons."""
     overlays: dict[str, npt.NDArray[np.float64]] = field(default_factory=dict)
     """Per-follower vectors (F, 2) drawn as arrows, by rule name."""
     hud_lines: tuple[str, ...] = ()
-    """Extra text lines (e.g. the live window's controls)."""
+    """Extra text for the panel (e.g. the live window's controls), wrapped to its width."""
+
+
+VIEWS = ("arena", "follow")
+"""``arena``: the whole arena; ``follow``: a camera that follows the flock, zoomed so the
+robots show at their true size, with the whole arena as a map in the panel."""
+MIN_VIEW = 1.6
+"""Smallest half-width (m) of the ``follow`` view."""
 
 
 class Renderer:
-    """Draws :class:`Scene` frames of one env; created by the env on its first render."""
+    """Draws :class:`Scene` frames of one env (created by the env on its first render) or of
+    a recording (:mod:`boids_env.eval.video`).
+
+    Args:
+        mode: ``human`` (a window) or ``rgb_array`` (returns the frames).
+        arena_half_size: half the arena's side (m).
+        show_horizon: draw each follower's neighbour radius.
+        trail_length: control steps of the leader's trail that stay drawn.
+        view: one of :data:`VIEWS`.
+    """
 
     def __init__(self, mode: str, arena_half_size: float, *, show_horizon: bool = False,
-                 trail_length: int = 2000) -> None:
+                 trail_length: int = 2000, view: str = "arena") -> None:
+        if view not in VIEWS:
+            raise ValueError(f"view must be one of {VIEWS}, got {view!r}")
         self.mode = mode
+        self.view = view
         self.half = arena_half_size
-        self.scale = (SIZE - 20) / (2 * arena_half_size)  # px per metre, 10 px margin
+        self.centre = np.zeros(2)
+        """The middle of the drawn area (m); the arena's centre in the ``arena`` view."""
+        self.view_half = arena_half_size
+        """Half the side of the drawn area (m)."""
+        self.scale = (ARENA - 2 * MARGIN) / (2 * arena_half_size)
+        """Pixels per metre of the arena drawing."""
         self.show_horizon = show_horizon
         self.trail_length = trail_length
-        self._trail: list[tuple[int, int]] = []
+        self._trail: list[npt.NDArray[np.float64]] = []
         self._last_steps = -1
+        self._camera_steps = -1
+        self._gliding = False
+        self.arrow_scale = style.ARROW_SCALE * (2 if view == "arena" else 1)
+        """Metres drawn per unit of an overlay vector (twice the style's in the zoomed-out
+        ``arena`` view)."""
+        self.arrow_max = style.ARROW_MAX * (1.6 if view == "arena" else 1)
+        """Longest arrow drawn (m)."""
+        self.message = ""
+        """A transient message shown at the bottom of the panel (the live window's)."""
+        self.message_opacity = 1.0
+        """Its opacity, 0 (gone) to 1, so that it can fade."""
         pygame.font.init()
-        self._font = pygame.font.Font(None, 22)
+        self._fonts = {size: pygame.font.Font(None, size) for size in (16, 19, 21, 26)}
         self._window: Any = None
         self._clock: Any = None
         self.fps: float = 10.0
         """Frames per second of the human window (10 = real time; 0 = as fast as possible)."""
         if mode == "human":
-            pygame.display.init()
-            self._window = pygame.display.set_mode((SIZE, SIZE + HUD_HEIGHT))
-            pygame.display.set_caption("boids-env")
+            self._window = open_window((WIDTH, HEIGHT), "boids-env")
             self._clock = pygame.time.Clock()
-        self._canvas = pygame.Surface((SIZE, SIZE + HUD_HEIGHT))
+        self._canvas = pygame.Surface((WIDTH, HEIGHT))
+        self._background = self._draw_background() if view == "arena" else None
 
     def to_px(self, points: npt.NDArray[np.float64]) -> npt.NDArray[np.int64]:
         """World metres (..., 2) to pixel coordinates (y up in the world, down on screen)."""
+        points = np.asarray(points, dtype=float)
         px = np.empty(points.shape, dtype=np.int64)
-        px[..., 0] = np.rint(SIZE / 2 + points[..., 0] * self.scale)
-        px[..., 1] = np.rint(SIZE / 2 - points[..., 1] * self.scale)
+        px[..., 0] = np.rint(ARENA / 2 + (points[..., 0] - self.centre[0]) * self.scale)
+        px[..., 1] = np.rint(HEIGHT / 2 - (points[..., 1] - self.centre[1]) * self.scale)
         return px
+
+    def robot_radius_px(self, robot_radius: float, robots: int) -> int:
+        """Drawn radius (px): the true one, or :data:`MIN_RADIUS` (3 px above 200 robots)."""
+        least = MIN_RADIUS if robots <= 200 else 3
+        return max(least, round(robot_radius * self.scale))
+
+    def advance(self, scene: Scene) -> None:
+        """Takes in a scene that is not drawn (a video's skipped step): the leader's trail
+        still passes through it."""
+        self._update_trail(scene.steps, np.asarray(scene.positions[0], dtype=float))
 
     def draw(self, scene: Scene) -> npt.NDArray[np.uint8] | None:
         """Draws one frame; returns an (H, W, 3) image in ``rgb_array`` mode."""
         canvas = self._canvas
-        canvas.fill(BACKGROUND)
-        corner = self.to_px(np.array([-self.half, self.half]))
-        side = round(2 * self.half * self.scale)
-        pygame.draw.rect(canvas, WALL, (int(corner[0]), int(corner[1]), side, side), 2)
-        pos = self.to_px(scene.positions)
-        if scene.steps < self._last_steps or scene.steps == 0:
-            self._trail = []
-        if scene.steps != self._last_steps:
-            self._trail.append((int(pos[0, 0]), int(pos[0, 1])))
-            self._trail = self._trail[-self.trail_length:]
-        self._last_steps = scene.steps
+        positions = np.asarray(scene.positions, dtype=float)
+        self._update_trail(scene.steps, positions[0])
+        if self._background is not None:
+            canvas.blit(self._background, (0, 0))
+        else:
+            self._update_camera(positions, reset=scene.steps == 0)
+            self._draw_grid(canvas)
+        canvas.set_clip(pygame.Rect(0, 0, ARENA - 1, HEIGHT))  # nothing spills into the panel
+        pos = self.to_px(positions)
         if len(self._trail) > 1:
-            pygame.draw.lines(canvas, TRAIL, False, self._trail, 2)
+            pygame.draw.lines(canvas, style.TRAIL, False,
+                              [tuple(p) for p in self.to_px(np.array(self._trail))], 2)
         if self.show_horizon:
             r = int(scene.horizon * self.scale)
             for x, y in pos[1:]:
                 pygame.draw.circle(canvas, HORIZON, (int(x), int(y)), r, 1)
-        radius = max(3, round(scene.robot_radius * self.scale))
-        for x, y in pos[1:]:
-            pygame.draw.circle(canvas, FOLLOWER, (int(x), int(y)), radius)
-        pygame.draw.circle(canvas, LEADER, (int(pos[0, 0]), int(pos[0, 1])), radius + 1)
-        self._draw_arrows(canvas, scene.positions[1:], scene.overlays)
-        self._draw_hud(canvas, scene)
+        touching = sorted(contact_pairs(positions, 2 * scene.robot_radius + CONTACT_TOLERANCE)
+                          ) if len(pos) > 1 else []
+        self._draw_robots(canvas, pos, scene.robot_radius, {k for p in touching for k in p})
+        self._draw_arrows(canvas, positions[1:], scene.overlays)
+        if self._background is None:  # the margins, over what was drawn beyond the view
+            self._draw_margins(canvas)
+        canvas.set_clip(None)
+        self._draw_panel(canvas, scene, len(touching))
         if self.mode == "human":
             self._window.blit(canvas, (0, 0))
             pygame.event.pump()
@@ -126,25 +182,208 @@ class Renderer:
             return None
         return np.ascontiguousarray(np.transpose(pygame.surfarray.array3d(canvas), (1, 0, 2)))
 
+    # ----------------------------------------------------------------------------- arena
+    def _update_camera(self, positions: npt.NDArray[np.float64], reset: bool) -> None:
+        """Follows the flock lazily: the view stays put while the flock is near its middle,
+        glides after it when it drifts off (or snaps, on the first frame), widens at once
+        when a robot would leave it and narrows slowly; it moves in whole pixels, so a still
+        frame is the same image (small GIFs)."""
+        lo, hi = positions.min(axis=0), positions.max(axis=0)
+        target = (lo + hi) / 2
+        need = max(MIN_VIEW, 0.6 * float(np.max(hi - lo)) + 0.5)
+        if reset or self._camera_steps < 0:
+            self.centre, self.view_half = target, need
+            self._gliding = False
+        else:
+            off = float(np.max(np.abs(target - self.centre)))
+            self._gliding = off > (0.02 if self._gliding else 0.2) * self.view_half
+            if self._gliding:
+                self.centre = self.centre + 0.15 * (target - self.centre)
+            if need > self.view_half:
+                self.view_half += 0.3 * (need - self.view_half)
+            elif need < 0.75 * self.view_half:
+                self.view_half += 0.05 * (need - self.view_half)
+        reach = float(np.max(np.abs(positions - self.centre))) + 0.25
+        self.view_half = min(max(self.view_half, reach), self.half + 0.5)
+        room = self.half + 0.5 - self.view_half  # the view stays within 0.5 m of the walls
+        self.scale = round((ARENA - 2 * MARGIN) / (2 * self.view_half), 1)
+        self.centre = np.round(np.clip(self.centre, -room, room) * self.scale) / self.scale
+        self._camera_steps = 0
+
+    def _draw_background(self) -> Any:
+        """The static part of the ``arena`` view: grid with labels, walls, panel."""
+        surface = pygame.Surface((WIDTH, HEIGHT))
+        self._draw_grid(surface)
+        self._draw_margins(surface)
+        return surface
+
+    def _draw_margins(self, surface: Any) -> None:
+        for rect in ((0, 0, ARENA, MARGIN), (0, HEIGHT - MARGIN, ARENA, MARGIN),
+                     (0, 0, MARGIN, HEIGHT), (ARENA - MARGIN, 0, MARGIN, HEIGHT)):
+            surface.fill(BACKGROUND, rect)
+        self._draw_tick_labels(surface)
+
+    def _ticks(self) -> npt.NDArray[np.float64]:
+        step = grid_step(self.view_half, self.scale)
+        lo = max(-self.half, float(self.centre.min()) - self.view_half)
+        hi = min(self.half, float(self.centre.max()) + self.view_half)
+        return np.arange(np.ceil(lo / step), np.floor(hi / step) + 1) * step
+
+    def _draw_grid(self, surface: Any) -> None:
+        surface.fill(OUTSIDE)
+        pygame.draw.rect(surface, PANEL_BACKGROUND, (ARENA, 0, PANEL, HEIGHT))
+        pygame.draw.line(surface, (205, 205, 200), (ARENA, 0), (ARENA, HEIGHT), 1)
+        surface.set_clip(pygame.Rect(0, 0, ARENA - 1, HEIGHT))
+        low = self.to_px(np.array([-self.half, -self.half]))
+        high = self.to_px(np.array([self.half, self.half]))
+        surface.fill(BACKGROUND, (int(low[0]), int(high[1]), int(high[0] - low[0]),
+                                  int(low[1] - high[1])))
+        for t in self._ticks():
+            x, y = self.to_px(np.array([t, t]))
+            pygame.draw.line(surface, GRID, (int(x), int(high[1])), (int(x), int(low[1])), 1)
+            pygame.draw.line(surface, GRID, (int(low[0]), int(y)), (int(high[0]), int(y)), 1)
+        side = int(high[0] - low[0])
+        pygame.draw.rect(surface, WALL, (int(low[0]), int(high[1]), side + 1, side + 1), 2)
+        surface.set_clip(None)
+
+    def _draw_tick_labels(self, surface: Any) -> None:
+        """Grid values (m) in the margins: x along the bottom, y along the left."""
+        font = self._fonts[16]
+        ticks = self._ticks()
+        for t in ticks:
+            x, y = self.to_px(np.array([t, t]))
+            label = font.render(f"{t:g}", True, GRID_LABEL)
+            if MARGIN <= x <= ARENA - MARGIN:
+                shown = font.render(f"{t:g} m", True, GRID_LABEL) if t == ticks[-1] else label
+                surface.blit(shown, (int(x) - label.get_width() // 2, HEIGHT - MARGIN + 5))
+            if MARGIN <= y <= HEIGHT - MARGIN:
+                surface.blit(label, (MARGIN - label.get_width() - 4,
+                                     int(y) - label.get_height() // 2))
+
+    def _update_trail(self, steps: int, leader: npt.NDArray[np.float64]) -> None:
+        if steps < self._last_steps or steps == 0:
+            self._trail = []
+        if steps != self._last_steps:
+            self._trail.append(np.array(leader, dtype=float))
+            self._trail = self._trail[-self.trail_length:]
+        self._last_steps = steps
+
+    def _draw_robots(self, canvas: Any, pos: npt.NDArray[np.int64], robot_radius: float,
+                     touching: set[int]) -> None:
+        drawn = self.robot_radius_px(robot_radius, len(pos))
+        true = robot_radius * self.scale
+        for k in range(len(pos) - 1, -1, -1):  # the leader last, on top
+            centre = (int(pos[k, 0]), int(pos[k, 1]))
+            radius = drawn + 1 if k == 0 and drawn > true + 0.5 else drawn
+            colour = style.LEADER if k == 0 else style.FOLLOWER
+            pygame.draw.circle(canvas, colour, centre, radius)
+            if true < radius - 1.5:  # the true size, as a dark core
+                pygame.draw.circle(canvas, darker(colour), centre, max(1, round(true)))
+            if k in touching:
+                pygame.draw.circle(canvas, style.CONTACT, centre, radius + 2, 2)
+
     def _draw_arrows(self, canvas: Any, followers: npt.NDArray[np.float64],
                      overlays: dict[str, npt.NDArray[np.float64]]) -> None:
         for name, vectors in overlays.items():
-            colour = ARROW_COLOURS.get(name, (90, 90, 90))
+            colour = style.RULE_COLOURS.get(name, style.OTHER_ARROW)
+            vec = style.arrow_vectors(vectors, self.arrow_scale, self.arrow_max)
             start = self.to_px(followers)
-            vec = ARROW_SCALE * np.asarray(vectors, dtype=float)
-            length = np.linalg.norm(vec, axis=-1, keepdims=True)
-            vec = np.where(length > ARROW_MAX, vec * ARROW_MAX / np.maximum(length, 1e-12), vec)
             end = self.to_px(followers + vec)
             for a, b in zip(start, end, strict=True):
-                if tuple(a) != tuple(b):
-                    pygame.draw.line(canvas, colour, (int(a[0]), int(a[1])),
-                                     (int(b[0]), int(b[1])), 2)
+                draw_arrow(canvas, colour, a, b)
 
-    def _draw_hud(self, canvas: Any, scene: Scene) -> None:
-        pygame.draw.rect(canvas, (235, 235, 230), (0, SIZE, SIZE, HUD_HEIGHT))
-        canvas.blit(self._font.render(scene.status, True, (20, 20, 20)), (8, SIZE + 6))
-        for i, line in enumerate(scene.hud_lines):
-            canvas.blit(self._font.render(line, True, (60, 60, 60)), (14, 14 + 17 * i))
+    # ----------------------------------------------------------------------------- panel
+    def _draw_panel(self, canvas: Any, scene: Scene, touching: int) -> None:
+        left, width = ARENA + 14, PANEL - 26
+        y = 12
+        y = self._text(canvas, "boids-env", (left, y), 26, TEXT) + 6
+        status = re.sub(r"=\s+", "= ", scene.status.strip())  # "t =   4.5 s" is one item
+        for item in [s for s in re.split(r"\s{3,}", status) if s]:
+            y = self._text(canvas, item, (left, y), 21, TEXT)
+        y = self._text(canvas, f"touching pairs {touching}", (left, y), 21,
+                       TEXT if touching == 0 else (170, 60, 0)) + 10
+        y = self._legend(canvas, scene, left, y) + 8
+        if self.view == "follow":
+            self._draw_map(canvas, np.asarray(scene.positions, dtype=float), left,
+                           max(y, HEIGHT - 12 - width), width)
+        for line in scene.hud_lines:
+            for part in wrap_text(line, self._fonts[19], width):
+                y = self._text(canvas, part, (left, y), 19, MUTED)
+        if self.message and self.message_opacity > 0:
+            lines = wrap_text(self.message, self._fonts[19], width)
+            y = HEIGHT - 10 - 17 * len(lines)
+            colour = blend(MESSAGE, PANEL_BACKGROUND, self.message_opacity)
+            for part in lines:
+                y = self._text(canvas, part, (left, y), 19, colour)
+
+    def _draw_map(self, canvas: Any, positions: npt.NDArray[np.float64], left: int, top: int,
+                  side: int) -> None:
+        """The whole arena, small: the leader's trail, the robots and the zoomed view."""
+        side = min(side, HEIGHT - 8 - top)
+        k = (side - 2) / (2 * self.half)
+
+        def px(points: npt.NDArray[np.float64]) -> list[tuple[int, int]]:
+            p = np.atleast_2d(points)
+            return [(round(left + 1 + (x + self.half) * k), round(top + 1 + (self.half - y) * k))
+                    for x, y in p]
+
+        pygame.draw.rect(canvas, BACKGROUND, (left, top, side, side))
+        pygame.draw.rect(canvas, WALL, (left, top, side, side), 1)
+        if len(self._trail) > 1:
+            pygame.draw.lines(canvas, style.TRAIL, False, px(np.array(self._trail)), 2)
+        for i, centre in enumerate(px(positions)[::-1]):
+            leader = i == len(positions) - 1
+            pygame.draw.circle(canvas, style.LEADER if leader else style.FOLLOWER, centre,
+                               3 if leader else 2)
+        (x0, y0), (x1, y1) = px(np.array([self.centre - self.view_half,
+                                          self.centre + self.view_half]))
+        rect = pygame.Rect(x0, y1, x1 - x0, y0 - y1).clip(pygame.Rect(left, top, side, side))
+        pygame.draw.rect(canvas, MUTED, rect, 1)
+        self._text(canvas, "whole arena (box: view)", (left + 4, top + 3), 16, MUTED)
+
+    def _legend(self, canvas: Any, scene: Scene, left: int, y: int) -> int:
+        radius = self.robot_radius_px(scene.robot_radius, len(scene.positions))
+        rows: list[tuple[str, Any]] = [
+            ("leader (robot 0)", lambda c: pygame.draw.circle(canvas, style.LEADER, c,
+                                                              radius + 1)),
+            ("follower", lambda c: pygame.draw.circle(canvas, style.FOLLOWER, c, radius)),
+            ("touching a robot", lambda c: (
+                pygame.draw.circle(canvas, style.FOLLOWER, c, radius),
+                pygame.draw.circle(canvas, style.CONTACT, c, radius + 2, 2))),
+            ("leader trail", lambda c: pygame.draw.line(canvas, style.TRAIL, (c[0] - 10, c[1]),
+                                                        (c[0] + 10, c[1]), 2))]
+        for name in scene.overlays:
+            colour = style.RULE_COLOURS.get(name, style.OTHER_ARROW)
+            rows.append((style.RULE_LABELS.get(name, name), lambda c, colour=colour: draw_arrow(
+                canvas, colour, np.array([c[0] - 11, c[1]]), np.array([c[0] + 11, c[1]]))))
+        for label, icon in rows:
+            icon((left + 11, y + 8))
+            y = self._text(canvas, label, (left + 30, y), 19, TEXT)
+        # 1 m scale bar at the arena's scale
+        bar = round(self.scale)
+        y += 8
+        pygame.draw.line(canvas, TEXT, (left, y + 6), (left + bar, y + 6), 2)
+        for x in (left, left + bar):
+            pygame.draw.line(canvas, TEXT, (x, y + 1), (x, y + 11), 2)
+        y = self._text(canvas, "1 m", (left + bar + 8, y), 19, TEXT) + 2
+        true_mm = 1000 * scene.robot_radius
+        if radius > scene.robot_radius * self.scale + 1:
+            factor = radius / (scene.robot_radius * self.scale)
+            note = (f"robots drawn {factor:.1f}x true size; dark core: true size "
+                    f"(r {true_mm:.0f} mm)")
+        else:
+            note = f"robots at true size (r {true_mm:.0f} mm)"
+        if scene.overlays:
+            note += f"; arrows {self.arrow_scale:g} m per N, at most {self.arrow_max:g} m"
+        for part in wrap_text(note, self._fonts[16], PANEL - 26):
+            y = self._text(canvas, part, (left, y), 16, MUTED)
+        return y
+
+    def _text(self, canvas: Any, text: str, at: tuple[int, int], size: int,
+              colour: tuple[int, int, int]) -> int:
+        surface = self._fonts[size].render(text, True, colour)
+        canvas.blit(surface, at)
+        return at[1] + surface.get_height() + 1
 
     def close(self) -> None:
         if self._window is not None:

@@ -1,87 +1,195 @@
 """Recordings to and from ROS bags, as the original ROS system recorded its runs: ROS 1 bags
 (the original's format) and ROS 2 bags with MCAP storage, both through the same library.
 
-Topics ``/robot_k/odom`` (nav_msgs/Odometry: position and measured velocity) and
-``/robot_k/cmd_vel`` (geometry_msgs/Twist: the commanded velocity), robot 0 the leader, one
-message per robot per control step, stamped with the episode time. Pure Python through the
-``rosbags`` package (``pip install 'boids-env[ros]'``); no ROS install needed.
+Topics, one message per control step (10 Hz) stamped ``start`` + the episode time:
+
+- ``/robot_k/odom`` (nav_msgs/Odometry: position, heading and measured velocity) and
+  ``/robot_k/cmd_vel`` (geometry_msgs/Twist: the commanded velocity), robot 0 the leader, as
+  the original recorded them (:func:`read_bag` needs only these);
+- ``/clock`` (rosgraph_msgs/Clock) and ``/tf`` (tf2_msgs/TFMessage, ``map`` -> ``robot_k``),
+  so that RViz and Foxglove play the bag on its own time;
+- ``/markers/robots`` (visualization_msgs/MarkerArray: spheres of the robots' true size, the
+  leader red) and ``/markers/forces`` (the policy's rule forces as arrows, when recorded);
+- ``/leader/path`` (nav_msgs/Path: the leader's scripted path, latched, repeated every
+  second), which :func:`read_bag` reads back for the leader's path deviation.
+
+Pure Python through the ``rosbags`` package (``pip install 'boids-env[ros]'``); no ROS
+install needed. ROS 2 bags carry Humble's message definitions (Jazzy's are the same on the
+wire for these types) and version 5 metadata, which Humble's ``ros2 bag`` reads and later
+distributions read too.
 """
 
 from __future__ import annotations
 
 import math
 import re
+import time
+from io import StringIO
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from boids_env.config import EnvConfig
+from boids_env.files import atomic_path
 from boids_env.layout import follower_cells
 from boids_env.recording import Recording
+from boids_env.rosmsgs import Messages, headings
 
 try:
     from rosbags import rosbag1, rosbag2
     from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
     from rosbags.rosbag2.enums import StoragePlugin
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 except ImportError as exc:  # pragma: no cover - depends on the install
     raise ImportError("ROS bag support needs rosbags: pip install 'boids-env[ros]'") from exc
 
 ODOM = "nav_msgs/msg/Odometry"
 TWIST = "geometry_msgs/msg/Twist"
+CLOCK = "rosgraph_msgs/msg/Clock"
+TF = "tf2_msgs/msg/TFMessage"
+MARKERS = "visualization_msgs/msg/MarkerArray"
+PATH = "nav_msgs/msg/Path"
+PATH_TOPIC = "/leader/path"
 _TOPIC = re.compile(r"^/robot_(\d+)/(odom|cmd_vel)$")
-
+_TF_ROS1 = "geometry_msgs/TransformStamped[] transforms\n"
+"""tf2_msgs/TFMessage in ROS 1, which rosbags' Noetic store lacks."""
+METADATA_VERSION = 5
+"""rosbag2 metadata version of our ROS 2 bags: Humble's own (its reader expects the QoS
+profiles as a YAML string, which version 9 made a list); newer readers accept it."""
 
 FORMATS = ("ros1", "mcap")
 
 
-def write_bag(recording: Recording, path: str | Path, *, format: str = "ros1") -> None:
-    """Writes ``recording`` at ``path`` (which must not exist): ``ros1``, a ROS 1 bag file
-    (Noetic message definitions), or ``mcap``, a ROS 2 bag folder with MCAP storage (Humble
-    definitions, CDR)."""
+def write_bag(recording: Recording, path: str | Path, *, format: str = "ros1",
+              start: float | None = None) -> None:
+    """Writes ``recording`` at ``path`` (which must not exist), atomically: ``ros1``, a ROS 1
+    bag file (Noetic message definitions), or ``mcap``, a ROS 2 bag folder with MCAP storage
+    (Humble definitions, CDR, version 5 metadata).
+
+    Args:
+        recording: the episode.
+        path: the bag file (``ros1``) or folder (``mcap``).
+        format: ``ros1`` or ``mcap``.
+        start: Unix time (s) of the recording's time 0, the first stamp; None: now. The
+            recording's times are offsets from it.
+    """
     path = Path(path)
     if format not in FORMATS:
         raise ValueError(f"format must be one of {FORMATS}, got {format!r}")
     if path.exists():
         raise FileExistsError(f"bag already exists: {path}")
+    origin = time.time() if start is None else start
+    if not (isinstance(origin, int | float) and math.isfinite(origin)
+            and 0 <= origin < 2**32 - recording.time[-1] - 1):
+        raise ValueError(f"start must be a Unix time in seconds from 0 to 2^32 (ROS 1 stamps "
+                         f"are unsigned 32-bit seconds), got {start!r}")
     ros1 = format == "ros1"
     store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    if ros1:
+        store.register(get_types_from_msg(_TF_ROS1, TF))
+    with atomic_path(path) as tmp:
+        writer_cm = rosbag1.Writer(tmp) if ros1 else rosbag2.Writer(
+            tmp, version=8, storage_plugin=StoragePlugin.MCAP)
+        with writer_cm as writer:
+            _write_messages(writer, store, ros1, recording, _to_ns(origin))
+        if not ros1:
+            _humble_metadata(tmp, path.name)
+
+
+def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
+                    origin: int) -> None:
     serialize = store.serialize_ros1 if ros1 else store.serialize_cdr
-    t = store.types
-    zero36 = np.zeros(36, dtype=np.float64)
-    quat = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
     n = recording.positions.shape[1]
-    writer_cm = rosbag1.Writer(path) if ros1 else rosbag2.Writer(
-        path, version=9, storage_plugin=StoragePlugin.MCAP)
-    with writer_cm as writer:
-        odom = [writer.add_connection(f"/robot_{k}/odom", ODOM, typestore=store)
-                for k in range(n)]
-        cmd = [writer.add_connection(f"/robot_{k}/cmd_vel", TWIST, typestore=store)
-               for k in range(n)]
-        for step, time in enumerate(recording.time):
-            ns = round(float(time) * 1e9)
-            stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
-            for k in range(n):
-                x, y = (float(v) for v in recording.positions[step, k])
-                vx, vy = (float(v) for v in recording.velocities[step, k])
-                cx, cy = (float(v) for v in recording.commanded[step, k])
-                header = (t["std_msgs/msg/Header"](seq=step, stamp=stamp, frame_id="map") if ros1
-                          else t["std_msgs/msg/Header"](stamp=stamp, frame_id="map"))
-                pose = t["geometry_msgs/msg/Pose"](
-                    position=t["geometry_msgs/msg/Point"](x=x, y=y, z=0.0), orientation=quat)
-                twist = _twist(t, vx, vy)
-                msg = t[ODOM](
-                    header=header, child_frame_id=f"robot_{k}",
-                    pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero36),
-                    twist=t["geometry_msgs/msg/TwistWithCovariance"](twist=twist,
-                                                                     covariance=zero36))
-                writer.write(odom[k], ns, serialize(msg, ODOM))
-                writer.write(cmd[k], ns, serialize(_twist(t, cx, cy), TWIST))
+    latched = {"latching": 1} if ros1 else {"offered_qos_profiles": [_qos(latched=True)]}
+    usual = {} if ros1 else {"offered_qos_profiles": [_qos()]}
+
+    def connect(topic: str, msgtype: str, **kwargs: Any) -> Any:
+        return writer.add_connection(topic, msgtype, typestore=store, **(kwargs or usual))
+
+    odom = [connect(f"/robot_{k}/odom", ODOM) for k in range(n)]
+    cmd = [connect(f"/robot_{k}/cmd_vel", TWIST) for k in range(n)]
+    clock, tf = connect("/clock", CLOCK), connect("/tf", TF)
+    robots = connect("/markers/robots", MARKERS)
+    forces = connect("/markers/forces", MARKERS) if recording.forces else None
+    route = connect(PATH_TOPIC, PATH, **latched) if recording.leader_path is not None else None
+    build = Messages(store, ros1, recording.config.world.robot_radius)
+    yaws = headings(recording.commanded, recording.velocities)
+    per_second = max(1, round(1.0 / recording.config.world.dt))
+    for step, offset in enumerate(recording.time):
+        ns = origin + round(float(offset) * 1e9)
+        pos, vel, com = (recording.positions[step], recording.velocities[step],
+                         recording.commanded[step])
+        writer.write(clock, ns, serialize(build.clock(ns), CLOCK))
+        writer.write(tf, ns, serialize(build.tf(ns, step, pos, yaws[step]), TF))
+        for k in range(n):
+            header = build.header(ns, step)
+            msg = build.odometry(header, k, pos[k], vel[k], float(yaws[step, k]))
+            writer.write(odom[k], ns, serialize(msg, ODOM))
+            writer.write(cmd[k], ns, serialize(build.twist(float(com[k, 0]), float(com[k, 1])),
+                                               TWIST))
+        writer.write(robots, ns, serialize(build.robot_markers(ns, step, pos, yaws[step]),
+                                           MARKERS))
+        if forces is not None:
+            vectors = {name: vec[step] for name, vec in recording.forces.items()}
+            writer.write(forces, ns, serialize(build.force_markers(ns, step, pos[1:], vectors),
+                                               MARKERS))
+        if route is not None and step % per_second == 0:
+            assert recording.leader_path is not None
+            writer.write(route, ns, serialize(build.path(ns, step, recording.leader_path),
+                                              PATH))
 
 
-def _twist(types: dict, vx: float, vy: float) -> object:
-    vec = types["geometry_msgs/msg/Vector3"]
-    return types[TWIST](linear=vec(x=vx, y=vy, z=0.0), angular=vec(x=0.0, y=0.0, z=0.0))
+def _to_ns(seconds: float) -> int:
+    """Unix seconds -> integer nanoseconds, exact to the nanosecond (a double holds 1.7e18 ns
+    only to 256 ns)."""
+    whole = math.floor(seconds)
+    return whole * 10**9 + round((seconds - whole) * 1e9)
+
+
+def _qos(latched: bool = False) -> Any:
+    """The offered QoS of a topic: reliable, keep last 10, volatile; latched (the leader's
+    path): transient local, keep last 1, so that a late subscriber (RViz) still gets it."""
+    never = QosTime(sec=0, nsec=0)  # unspecified: the default, infinite
+    durability = QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE
+    return Qos(QosHistory.KEEP_LAST, 1 if latched else 10, QosReliability.RELIABLE, durability,
+               never, never, QosLiveliness.AUTOMATIC, never, False)
+
+
+def _humble_metadata(folder: Path, name: str) -> None:
+    """Renames the bag's MCAP file after the bag (``name``.mcap; it was written under a
+    temporary name) and rewrites rosbags' metadata (version 8) as version 5, Humble's: the
+    fields Humble reads (the QoS profiles a YAML string, as both versions have them), without
+    the later ones (``custom_data``, ``ros_distro``, ``type_description_hash``)."""
+    from ruamel.yaml import YAML
+
+    meta = folder / "metadata.yaml"
+    yaml = YAML(typ="safe")
+    data = yaml.load(meta.read_text())
+    info = data["rosbag2_bagfile_information"]
+    info["version"] = METADATA_VERSION
+    for key in ("custom_data", "ros_distro"):
+        info.pop(key, None)
+    for topic in info["topics_with_message_count"]:
+        topic["topic_metadata"].pop("type_description_hash", None)
+    (old,) = info["relative_file_paths"]
+    new = f"{name}.mcap"
+    (folder / old).rename(folder / new)
+    info["relative_file_paths"] = [new]
+    for entry in info["files"]:
+        entry["path"] = new
+    yaml.default_flow_style = False
+    out = StringIO()
+    yaml.dump(data, out)
+    meta.write_text(out.getvalue())
 
 
 def read_bag(path: str | Path, config: EnvConfig | None = None, *,
@@ -114,9 +222,14 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
     store = get_typestore(Stores.ROS1_NOETIC if path.is_file() else Stores.ROS2_HUMBLE)
     odom: dict[int, list[tuple[int, float, float, float, float]]] = {}
     cmd: dict[int, list[tuple[float, float]]] = {}
+    leader_path: np.ndarray | None = None
     try:
         with AnyReader([path], default_typestore=store) as reader:
             for conn, stamp, raw in reader.messages():
+                if conn.topic == PATH_TOPIC and leader_path is None:  # ours: the first one
+                    poses = reader.deserialize(raw, conn.msgtype).poses
+                    leader_path = np.array([(p.pose.position.x, p.pose.position.y)
+                                            for p in poses], dtype=np.float64).reshape(-1, 2)
                 match = _TOPIC.match(conn.topic)
                 if not match:
                     continue
@@ -141,9 +254,16 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
                              f"{_robots(bad)}")
     base = _fit_config(path, config if config is not None else EnvConfig(), len(robots),
                        float(np.abs(o[:, :, 1:3]).max()))
-    time = o[0, :, 0] / 1e9  # stamps (ns) of robot 0's odometry
-    return Recording(base, time, o[:, :, 1:3].transpose(1, 0, 2), o[:, :, 3:5].transpose(1, 0, 2),
-                     np.ascontiguousarray(c.transpose(1, 0, 2)))
+    # robot 0's odometry stamps (exact integers, ns): times from the first
+    stamps = np.array([row[0] for row in odom[robots[0]]], dtype=np.int64)
+
+    def samples(a: np.ndarray) -> np.ndarray:
+        # (T, N, 2) in C order, as a live recording's: numpy sums in memory order, so the
+        # metrics come out bit-identical
+        return np.ascontiguousarray(a.transpose(1, 0, 2))
+
+    return Recording(base, (stamps - stamps[0]) / 1e9, samples(o[:, :, 1:3]),
+                     samples(o[:, :, 3:5]), samples(c), leader_path=leader_path)
 
 
 def _robots(ks: list[int], limit: int = 10) -> str:

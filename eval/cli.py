@@ -43,8 +43,10 @@ def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
 def _run_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="run one episode of a policy, print its metrics, save files",
                        description="Run one episode: prints V_sep / V_coh / V_align and the "
-                       "extra flock metrics; with --out writes metrics.json, "
-                       "trajectory.parquet and config.json (and a GIF with --video).")
+                       "extra flock and safety metrics; writes metrics.json, "
+                       "trajectory.parquet, config.json and manifest.json to --out (and a "
+                       "video with --video, ROS bags with --bag / --mcap). --out must be "
+                       "empty or new unless --overwrite.")
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
     p.add_argument("--robots", type=int, default=13, help="group size, leader included (13)")
     p.add_argument("--leader-speed", type=float, default=0.55, help="m/s (0.55)")
@@ -61,16 +63,47 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-wrap", action="store_true",
                    help="the study's unwrapped alignment angle rule")
     p.add_argument("--out", default="runs/latest", help="output folder (runs/latest)")
-    p.add_argument("--video", action="store_true", help="also write episode.gif (render extra)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace what an earlier boids run wrote in --out (listed in its "
+                   "manifest.json; your own files there are kept)")
+    p.add_argument("--video", nargs="?", const="gif", choices=("gif", "mp4"), default=None,
+                   help="also write episode.gif (render extra), or episode.mp4 with "
+                   "--video mp4 (video extra: imageio-ffmpeg)")
     p.add_argument("--bag", action="store_true", help="also write a ROS 1 bag (ros extra)")
     p.add_argument("--mcap", action="store_true",
                    help="also write a ROS 2 bag with MCAP storage, episode_mcap/ (ros extra)")
+    p.add_argument("--bag-start", type=parse_start, default=None,
+                   help="the bags' first stamp: ISO 8601 date-time (UTC unless it names an "
+                   "offset) or Unix seconds (default: now)")
     p.add_argument("--render", choices=("none", "human"), default="none",
                    help="human: live window (arrow keys drive a --path external leader, "
                    "1-6 and +/- tune the Reynolds parameters); nothing is written")
     p.add_argument("--fast", type=float, default=4.0,
                    help="speed-up of the live window's fast mode, key f (4)")
     p.set_defaults(func=_cmd_run)
+
+
+def parse_start(text: str) -> float:
+    """``"2024-05-01T12:00:00"`` (UTC unless an offset is given) or ``"1714564800.5"`` (Unix
+    seconds) -> Unix seconds."""
+    from datetime import UTC, datetime
+
+    try:
+        value = float(text)
+    except ValueError:
+        try:
+            moment = datetime.fromisoformat(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"--bag-start must be an ISO 8601 date-time (e.g. 2024-05-01T12:00:00) or "
+                f"Unix seconds, got {text!r}") from None
+        if moment.tzinfo is None:
+            moment = moment.replace(tzinfo=UTC)
+        value = moment.timestamp()
+    if not 0 <= value < 2**32:  # ROS 1 stamps: unsigned 32-bit seconds
+        raise argparse.ArgumentTypeError(
+            f"--bag-start must be between 1970 and 2106 (Unix seconds 0 to 2^32), got {text!r}")
+    return value
 
 
 def _policy_extras(specs: list[str]) -> list[str]:
@@ -100,21 +133,28 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.render == "human":
         require("render", *needs, purpose="boids run --render human")
         from boids_env.eval.live import run_live
+        from boids_env.eval.run import metrics_table
+        from boids_env.render import NoDisplayError
 
-        _, metrics = run_live(args.policy, preset=args.preset, seed=args.seed,
-                              fast_factor=args.fast, env_fields=fields,
-                              leader_weight=args.leader_weight)
-        print({k: metrics[k] for k in ("V_sep", "V_coh", "V_align", "duration")})
+        try:
+            _, metrics = run_live(args.policy, preset=args.preset, seed=args.seed,
+                                  fast_factor=args.fast, env_fields=fields,
+                                  leader_weight=args.leader_weight)
+        except NoDisplayError as exc:
+            print(f"boids run: error: {exc}", file=sys.stderr)
+            return 2
+        print("last episode of the live window:")
+        print(metrics_table(metrics))
         return 0
     needs += ["render"] if args.video else []
     needs += ["ros"] if args.bag or args.mcap else []
-    require(*needs, purpose="boids run" + " --video" * args.video + " --bag" * args.bag
+    require(*needs, purpose="boids run" + " --video" * bool(args.video) + " --bag" * args.bag
             + " --mcap" * args.mcap + (f" --policy {args.policy}" if "train" in needs else ""))
     from boids_env.eval.run import run
 
-    run(args.policy, out=args.out, seed=args.seed, preset=args.preset,
-        leader_weight=args.leader_weight, video=args.video, bag=args.bag, mcap=args.mcap,
-        env_fields=fields)
+    run(args.policy, out=args.out, overwrite=args.overwrite, seed=args.seed,
+        preset=args.preset, leader_weight=args.leader_weight, video=args.video, bag=args.bag,
+        mcap=args.mcap, bag_start=args.bag_start, env_fields=fields)
     return 0
 
 

@@ -8,6 +8,8 @@ from the keyboard while it runs, as the original did with its dynamic-reconfigur
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -23,8 +25,12 @@ TUNABLE = (("1", "separation_weight", 0.1), ("2", "cohesion_weight", 0.1),
 MAX_HORIZON = 2.0
 """Sensing radius of the live env (m): the tuned horizon can grow up to it."""
 ARROWS = {"up": (0.0, 1.0), "down": (0.0, -1.0), "left": (-1.0, 0.0), "right": (1.0, 0.0)}
-HELP = ("arrows: drive leader (--path external)  1-6: pick  +/-: change  "
-        "space: pause  f: fast  r: restart  q: quit")
+HELP = ("arrows: drive the leader (--path external) · 1-6: pick · +/-: change · "
+        "space: pause · f: fast · r: restart · q: quit")
+MESSAGE_SECONDS = 3.0
+"""How long a message stays fully visible (s) before it fades."""
+FADE_SECONDS = 1.0
+"""How long it takes to fade out (s)."""
 
 
 @dataclass
@@ -40,7 +46,24 @@ class LiveControls:
     quit: bool = False
     restart: bool = False
     message: str = ""
+    """The last message (a changed value, a refused one); it fades after a few seconds."""
     held: set[str] = field(default_factory=set)
+    clock: Callable[[], float] = time.monotonic
+    """Seconds, for the messages' age (tests pass their own)."""
+    message_time: float = float("-inf")
+    """When :attr:`message` was set (``clock`` seconds)."""
+
+    def say(self, text: str) -> None:
+        """Shows ``text`` as the message, from now."""
+        self.message = text
+        self.message_time = self.clock()
+
+    def message_opacity(self) -> float:
+        """1 while the message is fresh, then down to 0 over :data:`FADE_SECONDS`."""
+        if not self.message:
+            return 0.0
+        age = self.clock() - self.message_time
+        return float(min(1.0, max(0.0, 1.0 - (age - MESSAGE_SECONDS) / FADE_SECONDS)))
 
     def key_down(self, key: str) -> None:
         """Handles a key press (a pygame key name: ``up``, ``1``, ``+``, ``space`` …)."""
@@ -69,19 +92,19 @@ class LiveControls:
         """Changes the selected parameter by one step; invalid values are refused, shown in
         :attr:`message`, and leave the parameters unchanged."""
         if self.params is None:
-            self.message = "this policy has no Reynolds parameters"
+            self.say("this policy has no Reynolds parameters")
             return
         step = next(s for _, name, s in TUNABLE if name == self.selected)
         value = round(getattr(self.params, self.selected) + direction * step, 6)
         if self.selected == "horizon" and value > MAX_HORIZON:
-            self.message = f"horizon must be <= {MAX_HORIZON} m (the live sensing radius)"
+            self.say(f"horizon must be <= {MAX_HORIZON} m (the live sensing radius)")
             return
         try:
             self.params = replace(self.params, **{self.selected: value})
         except ValueError as exc:
-            self.message = str(exc)
+            self.say(str(exc))
             return
-        self.message = f"{self.selected} = {value:g}"
+        self.say(f"{self.selected} = {value:g}")
 
     def leader_command(self) -> npt.NDArray[np.float64]:
         """The leader's velocity from the held arrow keys, at ``leader_speed``."""
@@ -91,7 +114,8 @@ class LiveControls:
         return direction / norm * self.leader_speed if norm > 0 else np.zeros(2)
 
     def hud_lines(self) -> list[str]:
-        """The on-screen text: the parameters (selected one marked) and the key help."""
+        """The panel's text: the parameters (selected one marked), the state and the key help
+        (the message is shown apart, fading: :meth:`message_opacity`)."""
         lines = []
         if self.params is not None:
             for key, name, _ in TUNABLE:
@@ -100,8 +124,6 @@ class LiveControls:
         state = " ".join(s for s, on in (("PAUSED", self.paused), ("FAST", self.fast)) if on)
         if state:
             lines.append(state)
-        if self.message:
-            lines.append(self.message)
         lines.append(HELP)
         return lines
 
@@ -110,12 +132,13 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
              fast_factor: float = 4.0, env_fields: dict[str, Any] | None = None,
              leader_weight: float | None = None) -> tuple[LiveControls, dict[str, Any]]:
     """Opens the window and runs episodes until ``q``; returns the final controls (the tuned
-    parameters) and the last episode's metrics (with the leader's final position)."""
-    import pygame
-
+    parameters) and the last episode's metrics, the safety metrics included (with the
+    leader's final position). Raises :class:`~boids_env.render.NoDisplayError` where there
+    is no display."""
     from boids_env.environment import BoidsEnv
     from boids_env.eval.episode import env_fields_for
     from boids_env.policies.registry import load_policy
+    from boids_env.recording import Recorder
 
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
     policy = load_policy(policy_spec, preset=preset, **overrides)
@@ -130,25 +153,25 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
     policy.reset(seed)
     env.render()
     renderer = env._renderer
+    recorder = Recorder()
+    recorder.capture(env)
     try:
         while not controls.quit:
-            for event in pygame.event.get():
-                if event.type == pygame.QUIT:
-                    controls.quit = True
-                elif event.type == pygame.KEYDOWN:
-                    controls.key_down(pygame.key.name(event.key))
-                elif event.type == pygame.KEYUP:
-                    controls.key_up(pygame.key.name(event.key))
+            _handle_events(controls)
             if controls.quit:
                 break
             if controls.params is not None:
                 policy.params = controls.params  # type: ignore[attr-defined]
             renderer.fps = env.metadata["render_fps"] * (fast_factor if controls.fast else 1)
             env.hud_text = controls.hud_lines()
+            renderer.message, renderer.message_opacity = (controls.message,
+                                                          controls.message_opacity())
             if controls.restart or not env.agents:
                 controls.restart = False
                 obs, _ = env.reset(seed=seed)
                 policy.reset(seed)
+                recorder = Recorder()
+                recorder.capture(env)
             if controls.paused:
                 env.render()
                 continue
@@ -157,8 +180,24 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
             actions = policy.act(obs)
             env.overlays = getattr(policy, "forces", {}) or {}
             obs, *_ = env.step(actions)
+            recorder.capture(env)
     finally:
         metrics = env.episode_metrics()
+        if metrics.get("steps", 0):
+            metrics = recorder.recording(env, seed=seed).metrics()
         metrics["leader_position"] = env.snapshot().positions[0].tolist()
         env.close()
     return controls, metrics
+
+
+def _handle_events(controls: LiveControls) -> None:
+    """Passes the window's pending key events (and its close button) to ``controls``."""
+    import pygame
+
+    for event in pygame.event.get():
+        if event.type == pygame.QUIT:
+            controls.quit = True
+        elif event.type == pygame.KEYDOWN:
+            controls.key_down(pygame.key.name(event.key))
+        elif event.type == pygame.KEYUP:
+            controls.key_up(pygame.key.name(event.key))

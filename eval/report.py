@@ -1,6 +1,12 @@
 """``boids report DIR``: statistics, figures and ``report.md`` / ``report.html`` from a folder
 of saved results (``results.parquet`` + ``suite.json`` written by the runner); nothing is
-rerun."""
+rerun.
+
+Every table uses one alignment rule and says which: the study's verdicts (and the Tukey
+table behind them) its unwrapped rule, the other tables the rule the episodes ran with
+(wrapped into [0°, 180°] by default). A rebuild replaces ``figures/`` whole and removes the
+CSVs an earlier build wrote that this one does not (another suite's verdicts).
+"""
 
 from __future__ import annotations
 
@@ -12,12 +18,37 @@ import numpy as np
 import pandas as pd
 
 from boids_env.eval import figures
-from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, compare, holm
-from boids_env.eval.study import GROUP_OF_RQ, study_groups, study_summary, verdicts
+from boids_env.eval.compare import policy_comparison, with_contacts
+from boids_env.eval.compare import verdicts as policy_verdicts
+from boids_env.eval.html import write_html
+from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, pair_difference
+from boids_env.eval.study import (
+    GROUP_OF_RQ,
+    study_groups,
+    study_runs,
+    study_summary,
+    study_tukey,
+    verdicts,
+)
+from boids_env.files import atomic_path, write_text
+from boids_env.metrics import SAFETY_KEYS
 from boids_env.recording import Recording
 
-SUMMARY_METRICS = ("V_sep", "V_coh", "V_align", "V_align_unwrapped", "min_distance",
-                   "collisions", "polarization", "mean_leader_distance")
+__all__ = ["build_report", "load_results", "policy_comparison", "safety_table",
+           "study_side_by_side", "summary_table"]
+
+UNWRAPPED = "the study's unwrapped rule"
+SUMMARY_METRICS = ("V_sep", "V_coh", "V_align", "V_align_unwrapped", "polarization",
+                   "mean_leader_distance")
+SAFETY_METRICS = ("touching_fraction", "mean_contact_pairs", "contacts_follower",
+                  "contacts_leader", "wall_fraction", "mean_nn_distance", "min_distance",
+                  "leader_path_deviation", "leader_path_deviation_max")
+"""The safety table's columns: :data:`boids_env.metrics.SAFETY_KEYS` and the minimum
+distance."""
+assert set(SAFETY_KEYS) <= set(SAFETY_METRICS)
+OWN_CSVS = ("stats_anova.csv", "stats_tukey.csv", "stats_tukey_study.csv",
+            "policy_comparison.csv", "policy_verdicts.csv", "safety.csv")
+"""CSVs a build may write (besides ``verdicts_<policy>.csv``); stale ones are removed."""
 
 
 def load_results(out: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
@@ -37,39 +68,69 @@ def load_results(out: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     return table, suite
 
 
+def num(value: float, digits: int = 3) -> str:
+    """``value`` with ``digits`` decimals, never ``-0.000``."""
+    text = f"{float(value):.{digits}f}"
+    return text[1:] if text.startswith("-") and not text.strip("-0.") else text
+
+
+def signed(value: float) -> str:
+    """A difference to 3 significant digits with its sign; 0 for (almost) nothing, never
+    ``-0``."""
+    return "0" if abs(value) < 5e-13 else f"{value:+.3g}"
+
+
 def _fmt(mean: float, std: float) -> str:
-    return f"{mean:.3f} ± {std:.3f}"
+    return f"{num(mean)} ± {num(std)}"
 
 
-def summary_table(table: pd.DataFrame) -> pd.DataFrame:
-    """Mean ± population std per policy and case of the main metrics."""
+def alignment_rule(suite: dict[str, Any]) -> str:
+    """The alignment rule the suite's episodes ran with (their ``V_align``)."""
+    wraps = {c.get("env", {}).get("wrap_alignment", True) for c in suite.get("cases", [])}
+    if wraps == {False}:
+        return UNWRAPPED
+    return "wrapped into [0°, 180°]" if wraps <= {True} else "as configured per case"
+
+
+def summary_table(table: pd.DataFrame, metrics: tuple[str, ...] = SUMMARY_METRICS,
+                  rule: str = "wrapped into [0°, 180°]") -> pd.DataFrame:
+    """Mean ± population std per policy and case of ``metrics``; the alignment columns are
+    named with their rule (``rule``: the one the episodes ran with)."""
+    names = {"V_align": f"V_align ({'unwrapped' if rule == UNWRAPPED else rule.split()[0]})",
+             "V_align_unwrapped": "V_align (study's unwrapped)"}
     rows = []
     for (policy, case), g in table.groupby(["policy", "case"], sort=False):
         row = {"policy": policy, "case": case, "runs": len(g)}
-        for m in SUMMARY_METRICS:
+        for m in metrics:
             if m in g:
-                row[m] = _fmt(float(g[m].mean()), float(g[m].std(ddof=0)))
+                row[names.get(m, m)] = _fmt(float(g[m].mean()), float(g[m].std(ddof=0)))
         rows.append(row)
     return pd.DataFrame(rows)
 
 
+def safety_table(table: pd.DataFrame) -> pd.DataFrame:
+    """The safety metrics, mean ± population std per policy and case."""
+    return summary_table(table, tuple(m for m in SAFETY_METRICS if m in table))
+
+
 def study_side_by_side(table: pd.DataFrame, policy: str) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """The study's numbers beside ours: V_* (unwrapped alignment) for the RQ1 and RQ2 cases,
-    and per-follower counts (followers 1–6) for RQ3."""
+    """The study's numbers beside ours (mean ± population std; alignment: the study's
+    unwrapped rule): V_* for the RQ1 and RQ2 cases, per-follower counts (followers 1–6) for
+    RQ3."""
     summary = study_summary()
     rows = []
     for rq in (1, 2):
-        group = GROUP_OF_RQ[rq]
-        ours = table[(table.policy == policy) & (table.group == group)]
+        ours = table[(table.policy == policy) & (table.group == GROUP_OF_RQ[rq])]
         for level, g in ours.groupby("level", sort=False):
             row: dict[str, Any] = {"case": f"{g.factor.iloc[0]} {level}"}
             for metric in V_METRICS:
                 s = summary[(summary.rq == rq) & (summary.level == level)
                             & (summary.metric == metric)]
                 col = "V_align_unwrapped" if metric == "V_align" else metric
-                row[f"study {metric}"] = (_fmt(s["mean"].iloc[0], s["std"].iloc[0])
-                                          if len(s) else "—")
-                row[f"ours {metric}"] = _fmt(float(g[col].mean()), float(g[col].std(ddof=0)))
+                name = metric  # the table's heading names the alignment rule
+                row[f"study {name}"] = _fmt(s["mean"].iloc[0], s["std"].iloc[0]) if len(s) \
+                    else "—"
+                row[f"ours {name}"] = _fmt(float(g[col].mean()), float(g[col].std(ddof=0)))
             rows.append(row)
     first, rows = pd.DataFrame(rows), []
     ours3 = table[(table.policy == policy) & (table.group == GROUP_OF_RQ[3])]
@@ -78,105 +139,41 @@ def study_side_by_side(table: pd.DataFrame, policy: str) -> tuple[pd.DataFrame, 
         for metric in COUNT_METRICS:
             study = study_groups(3, metric).get(level)
             col = metric + ("_unwrapped" if metric == "count_align" else "")
+            name = metric
             vals = np.array([c for counts in g[col] for c in list(counts)[:6]], dtype=float)
-            row[f"study {metric}"] = _fmt(study.mean(), study.std()) if study is not None \
+            row[f"study {name}"] = _fmt(study.mean(), study.std()) if study is not None \
                 else "—"
-            row[f"ours {metric}"] = _fmt(vals.mean(), vals.std())
+            row[f"ours {name}"] = _fmt(vals.mean(), vals.std())
         rows.append(row)
     return first, pd.DataFrame(rows)
 
 
-def policy_comparison(table: pd.DataFrame, metrics: tuple[str, ...] = V_METRICS
-                      ) -> pd.DataFrame:
-    """Every other policy against the first, per case and metric: difference, 95 % bootstrap
-    CI, Welch p, Holm-corrected over all rows."""
-    policies = list(dict.fromkeys(table["policy"]))
-    rows = []
-    for other in policies[1:]:
-        for case in dict.fromkeys(table["case"]):
-            a = table[(table.policy == policies[0]) & (table.case == case)]
-            b = table[(table.policy == other) & (table.case == case)]
-            if len(a) < 2 or len(b) < 2:
-                continue
-            for metric in (*metrics, "total"):
-                av = a[list(metrics)].sum(axis=1) if metric == "total" else a[metric]
-                bv = b[list(metrics)].sum(axis=1) if metric == "total" else b[metric]
-                rows.append({"case": case, "metric": metric, "baseline": policies[0],
-                             "policy": other, "baseline_mean": float(av.mean()),
-                             "policy_mean": float(bv.mean()), **compare(av, bv)})
-    out = pd.DataFrame(rows)
-    if len(out):
-        out["p_holm"] = holm(out["p"].tolist())
-    return out
+def finding_table(tukey_study: pd.DataFrame, policy: str) -> pd.DataFrame:
+    """The study's findings beside ours for ``policy`` (from the unwrapped-rule Tukey
+    table): each pair as a statement, with the numbers and the verdict."""
+    v = verdicts(tukey_study, policy)
+    study = study_tukey()
+    ours = tukey_study[tukey_study.policy == policy] if len(tukey_study) else tukey_study
+    statements = []
+    for (_, s), (_, row) in zip(study.iterrows(), v.iterrows(), strict=True):
+        mine = "—"
+        if row.verdict != "not run":
+            part = ours[(ours.group == GROUP_OF_RQ[int(s.rq)]) & (ours.metric == s.metric)]
+            diff, reject, p = pair_difference(part, s.group1, s.group2)
+            mine = _statement(diff, reject, s.group1, s.group2, p)
+        statements.append((_statement(s.meandiff, bool(s.reject), s.group1, s.group2,
+                                      s.p_adj_published), mine))
+    v["study"] = [a for a, _ in statements]
+    v["ours"] = [b for _, b in statements]
+    return v
 
 
-def _md_table(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
-    return df.to_markdown(index=False, floatfmt=floatfmt) if len(df) else "(none)"
-
-
-def build_report(out: str | Path) -> Path:
-    """Writes ``report.md``, ``report.html``, ``stats_anova.csv``, ``stats_tukey.csv``,
-    ``verdicts.csv`` (paper suite) and ``figures/`` into ``out``; returns the report path."""
-    out = Path(out)
-    table, suite = load_results(out)
-    per_follower = tuple(suite.get("per_follower", ()))
-    followers = int(suite.get("followers_analysed", 6))
-    anova, tukey = analyse(table, per_follower, followers)
-    _anova_study, tukey_study = analyse(table, per_follower, followers, unwrapped=True)
-    anova.to_csv(out / "stats_anova.csv", index=False)
-    tukey.to_csv(out / "stats_tukey.csv", index=False)
-    fig_dir = out / "figures"
-    md: list[str] = [f"# Evaluation report: suite `{suite['name']}`", "",
-                     f"Policies: {', '.join(p['label'] for p in suite['policies'])}. "
-                     f"Seeds: {suite['seeds']}. Episodes in the table: {len(table)} "
-                     f"(cases that are the same configuration share their runs).", ""]
-    md += failed_episodes(out)
-    policies = list(dict.fromkeys(table["policy"]))
-    is_paper = suite["name"] == "paper"
-    if is_paper:
-        md += ["## The study's findings, reproduced or not", "",
-               "Each row is one pair of the study's Tukey HSD tables (FWER 0.05): reproduced "
-               "when our Tukey test on the same pair agrees (significant in the same "
-               "direction, or not significant). Alignment uses the study's unwrapped rule "
-               "here.", ""]
-        for policy in policies:
-            v = verdicts(tukey_study, policy)
-            v.insert(0, "policy", policy)
-            v.to_csv(out / f"verdicts_{_slug(policy)}.csv", index=False)
-            n_rep = int((v.verdict == "reproduced").sum())
-            md += [f"### {policy}: {n_rep} of {len(v)} findings reproduced", "",
-                   _md_table(v[["rq", "metric", "pair", "study", "ours", "verdict"]]), ""]
-            v_table, count_table = study_side_by_side(table, policy)
-            md += [f"#### {policy}: the study's numbers beside ours (mean ± population std)",
-                   "", _md_table(v_table), "", _md_table(count_table), ""]
-    md += ["## Results per case (mean ± population std)", "", _md_table(summary_table(table)),
-           ""]
-    md += ["## One-way ANOVA per group and metric", "",
-           "`p` is the study's ANOVA; `robust_test`/`robust_p` the test the data call for "
-           "(Welch when Levene rejects equal variances, Kruskal–Wallis when a level has zero "
-           "variance). eta² = SS_between / SS_total.", ""]
-    if len(anova):
-        md += [_md_table(anova.drop(columns=["means"])[
-            ["policy", "group", "metric", "F", "p", "eta2", "levene_p", "welch_p",
-             "kruskal_p", "robust_test", "robust_p"]]), ""]
-        md += ["## Tukey HSD (FWER 0.05; meandiff = mean(group2) − mean(group1))", "",
-               _md_table(tukey[["policy", "group", "metric", "group1", "group2", "meandiff",
-                                "p_adj", "reject"]]), ""]
-    if len(policies) > 1:
-        comp = policy_comparison(table)
-        comp.to_csv(out / "policy_comparison.csv", index=False)
-        md += ["## Policies compared per case", "",
-               f"Difference = policy − {policies[0]}; 95 % bootstrap CI; Welch t-test p, "
-               "Holm-corrected over all rows.", "", _md_table(comp), ""]
-        md += ["![total](figures/policies_total.png)", ""]
-        plot = table.assign(total=table[list(V_METRICS)].sum(axis=1))
-        figures.policy_bars(plot, "total", fig_dir / "policies_total.png")
-    md += ["## Figures", ""]
-    md += _figures(table, suite, per_follower, followers, fig_dir, out, is_paper)
-    report = out / "report.md"
-    report.write_text("\n".join(md))
-    _write_html(report, out / "report.html")
-    return report
+def _statement(diff: float, reject: bool, g1: str, g2: str, p: float) -> str:
+    shown_p = "p < 0.001" if p < 0.001 else f"p = {p:.3f}"
+    if not reject:
+        return f"no significant difference (Δ {signed(diff)}, {shown_p})"
+    higher = g2 if diff > 0 else g1
+    return f"higher at {higher} by {abs(diff):.3g} ({shown_p})"
 
 
 # Failed episodes: written by the reliability work (issue 14); one function and its one call.
@@ -201,58 +198,225 @@ def failed_episodes(out: Path) -> list[str]:
             f"command retries them).", "", _md_table(table), ""]
 
 
-def _figures(table: pd.DataFrame, suite: dict[str, Any], per_follower: tuple[str, ...],
-             followers: int, fig_dir: Path, out: Path, is_paper: bool) -> list[str]:
-    md: list[str] = []
-    study_rq = {v: k for k, v in GROUP_OF_RQ.items()}
-    for (policy, group), rows in table.groupby(["policy", "group"], sort=False):
-        name = f"{_slug(policy)}_{group}"
-        if group in per_follower:
-            path = figures.follower_bars(rows, COUNT_METRICS, f"{policy}: {group}",
-                                         fig_dir / f"{name}.png", followers)
-        else:
-            study = None
-            metrics: tuple[str, ...] = V_METRICS
-            if is_paper and group in study_rq:
-                metrics = ("V_sep", "V_coh", "V_align_unwrapped")
-                rq = study_rq[group]
-                study = {m if m != "V_align" else "V_align_unwrapped": study_groups(rq, m)
-                         for m in V_METRICS}
-            path = figures.level_bars(rows, metrics, f"{policy}: {group} "
-                                      f"({rows.factor.iloc[0]})", fig_dir / f"{name}.png",
-                                      study, followers)
-        md += [f"![{policy} {group}]({path.relative_to(out)})", ""]
-    if "trajectory" in table:
-        shown = table.dropna(subset=["trajectory"]).drop_duplicates(["policy", "case"])
-        for _, row in shown.iterrows():
-            traj = out / "trajectories" / str(row.trajectory)
-            if not traj.is_file():
-                continue
-            try:
-                rec = Recording.from_parquet(traj)
-            except (OSError, ValueError) as exc:  # a damaged file must not sink the report
-                md += [f"(trajectory of {row.policy}: {row.case}, seed {row.seed} not shown: "
-                       f"{exc})", ""]
-                continue
-            path = figures.trajectories(rec, f"{row.policy}: {row.case}, seed {row.seed}",
-                                        fig_dir / f"traj_{_slug(row.policy)}_"
-                                                  f"{_slug(row.case)}.png")
-            md += [f"![{row.case}]({path.relative_to(out)})"]
-        md.append("")
-    return md
+def _md_table(df: pd.DataFrame) -> str:
+    if not len(df):
+        return "(none)"
+    shown = df.copy()
+    for col in shown.columns:
+        if pd.api.types.is_float_dtype(shown[col]):
+            shown[col] = [("—" if not np.isfinite(v) else
+                           (f"{v:.3g}" if col.startswith("p") else num(v, 4)))
+                          for v in shown[col]]
+    return shown.to_markdown(index=False, disable_numparse=True)
 
 
 def _slug(text: str) -> str:
     return "".join(c if c.isalnum() or c in "._-" else "_" for c in str(text)).strip("_")
 
 
-def _write_html(markdown_path: Path, html_path: Path) -> None:
-    import markdown
+def build_report(out: str | Path) -> Path:
+    """Writes ``report.md``, ``report.html``, ``stats_anova.csv``, ``stats_tukey.csv``,
+    ``safety.csv``, for the paper suite ``stats_tukey_study.csv`` and
+    ``verdicts_<policy>.csv``, for two or more policies ``policy_comparison.csv`` and
+    ``policy_verdicts.csv``, and ``figures/`` (PNG and SVG) into ``out``; returns the
+    Markdown report's path."""
+    out = Path(out)
+    table, suite = load_results(out)
+    table = with_contacts(table)
+    per_follower = tuple(suite.get("per_follower", ()))
+    followers = int(suite.get("followers_analysed", 6))
+    policies = list(dict.fromkeys(table["policy"]))
+    is_paper = suite["name"] == "paper"
+    rule = alignment_rule(suite)
+    anova, tukey = analyse(table, per_follower, followers)
+    csvs: dict[str, pd.DataFrame] = {"stats_anova.csv": anova, "stats_tukey.csv": tukey,
+                                     "safety.csv": safety_table(table)}
+    title = (f"Evaluation report: suite {suite['name']} — "
+             f"{' vs '.join(policies)}")
+    md = [f"# {title}", "",
+          f"Policies: {', '.join(p['label'] for p in suite['policies'])} (the first is the "
+          f"baseline). Seeds: {', '.join(map(str, suite['seeds']))}. Episodes in the table: "
+          f"{len(table)} (cases that are the same configuration share their runs). "
+          f"Mean ± population std over seeds unless stated; figures show 95 % "
+          f"percentile-bootstrap confidence intervals.", ""]
+    md += failed_episodes(out)
+    summary = ["## Summary", ""]
+    if is_paper:
+        _, tukey_study = analyse(table, per_follower, followers, unwrapped=True)
+        csvs["stats_tukey_study.csv"] = tukey_study
+        md += _paper_sections(table, tukey_study, policies, csvs, summary)
+    md += ["## Results per case", "",
+           f"Two alignment columns: the rule the episodes ran with ({rule}) and the study's "
+           f"unwrapped rule. Distances in m.", "",
+           _md_table(summary_table(table, rule=rule)), ""]
+    md += ["## Safety per case", "",
+           "The study measures violations against the leader only, so a policy can score well "
+           "while its robots touch each other. `touching_fraction`: time some pair of robots "
+           "(the leader included) is in contact; `contacts_*`: contact onsets per episode; "
+           "`wall_fraction`: time some robot touches a wall; distances in m.", "",
+           _md_table(csvs["safety.csv"]), ""]
+    if len(policies) > 1:
+        md += _comparison_section(table, policies, csvs, summary)
+    md += _stats_section(anova, tukey, rule)
+    with atomic_path(out / "figures") as fig_dir:
+        fig_dir.mkdir()
+        md += ["## Figures", "", f"Each figure is in `figures/` as PNG and SVG. "
+               f"{figures.CI_NOTE}.", ""]
+        md += _figures(table, suite, per_follower, followers, fig_dir, is_paper, policies)
+    _write_csvs(out, csvs)
+    md = md[:2] + summary + [""] + md[2:] if len(summary) > 2 else md
+    text = "\n".join(md) + "\n"
+    write_text(out / "report.md", text)
+    write_html(text, out / "report.html", title, out)
+    return out / "report.md"
 
-    body = markdown.markdown(markdown_path.read_text(), extensions=["tables"])
-    style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}"
-             "table{border-collapse:collapse;font-size:12px;margin:1em 0}"
-             "td,th{border:1px solid #ccc;padding:2px 6px}img{max-width:100%}")
-    html_path.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>"
-                         f"{markdown_path.stem}</title><style>{style}</style></head><body>"
-                         f"{body}</body></html>")
+
+def _paper_sections(table: pd.DataFrame, tukey_study: pd.DataFrame, policies: list[str],
+                    csvs: dict[str, pd.DataFrame], summary: list[str]) -> list[str]:
+    md = ["## The study's findings, reproduced or not", "",
+          "Each row is one pair of the study's Tukey HSD tables (FWER 0.05; Δ = mean of the "
+          "second level − mean of the first): *reproduced* when our Tukey test on the same "
+          "pair agrees (significant in the same direction, or not significant). **Alignment: "
+          f"{UNWRAPPED}** (|θ_leader − θ_i| without wrapping), in the verdicts and in the "
+          "Tukey table behind them.", ""]
+    for policy in policies:
+        v = finding_table(tukey_study, policy)
+        v.insert(0, "policy", policy)
+        csvs[f"verdicts_{_slug(policy)}.csv"] = v
+        n_rep = int((v.verdict == "reproduced").sum())
+        summary.append(f"- **{policy}**: {n_rep} of {len(v)} of the study's findings "
+                       f"reproduced.")
+        md += [f"### {policy}: {n_rep} of {len(v)} findings reproduced", "",
+               _md_table(v[["rq", "metric", "pair", "study", "ours", "verdict"]]), "",
+               f"#### {policy}: Tukey HSD behind these verdicts (alignment: {UNWRAPPED})", "",
+               _md_table(tukey_study[tukey_study.policy == policy][
+                   ["group", "metric", "group1", "group2", "meandiff", "p_adj", "lower",
+                    "upper", "reject"]]), ""]
+        v_table, count_table = study_side_by_side(table, policy)
+        md += [f"#### {policy}: the study's numbers beside ours (mean ± population std; "
+               f"alignment: {UNWRAPPED})", "", _md_table(v_table), "", _md_table(count_table),
+               ""]
+    return md
+
+
+def _comparison_section(table: pd.DataFrame, policies: list[str],
+                        csvs: dict[str, pd.DataFrame], summary: list[str]) -> list[str]:
+    comp = policy_comparison(table)
+    verdict = policy_verdicts(comp)
+    csvs["policy_comparison.csv"], csvs["policy_verdicts.csv"] = comp, verdict
+    for policy, g in verdict.groupby("policy", sort=False):
+        counts = g["safety"].value_counts()
+        better = int((g["total"] == "better").sum())
+        summary.append(
+            f"- **{policy}** against {policies[0]}: total violation better in {better} of "
+            f"{len(g)} cases; safety: " + ", ".join(f"{k} in {v}" for k, v in counts.items())
+            + ".")
+    return ["## Policies compared per case", "",
+            f"Each policy against the baseline **{policies[0]}**, case by case: difference "
+            f"(policy − baseline) with its 95 % percentile-bootstrap CI and Welch's t-test, "
+            f"Holm-corrected over all rows. A difference counts when its corrected p < 0.05 "
+            f"and its CI excludes 0. V_* (lower is better): *better*, *worse* or *no "
+            f"significant difference*. **Safety verdict** from `touching_fraction`, "
+            f"`contacts` (contact onsets, all pairs) and `wall_fraction` (lower is safer): "
+            f"*less safe* when any is significantly higher, *safer* when one is "
+            f"significantly lower and none higher, *as safe* otherwise.", "",
+            _md_table(verdict), "", "#### Every comparison", "", _md_table(comp), "",
+            "![Total violation per case and policy](figures/policies_total.png)", "",
+            "![Safety per case and policy](figures/safety.png)", ""]
+
+
+def _stats_section(anova: pd.DataFrame, tukey: pd.DataFrame, rule: str) -> list[str]:
+    if not len(anova):
+        return []
+    return ["## One-way ANOVA per group and metric", "",
+            f"Alignment: {rule}. `p` is the study's ANOVA; `robust_test`/`robust_p` the test "
+            "the data call for (Welch when Levene rejects equal variances, Kruskal–Wallis "
+            "when a level has zero variance). eta² = SS_between / SS_total.", "",
+            _md_table(anova.drop(columns=["means"])[
+                ["policy", "group", "metric", "F", "p", "eta2", "levene_p", "welch_p",
+                 "kruskal_p", "robust_test", "robust_p"]]), "",
+            f"## Tukey HSD (FWER 0.05; alignment: {rule})", "",
+            "meandiff = mean(group2) − mean(group1).", "",
+            _md_table(tukey[["policy", "group", "metric", "group1", "group2", "meandiff",
+                             "p_adj", "lower", "upper", "reject"]]), ""]
+
+
+def _study_per_follower(metric: str, followers: int) -> dict[str, np.ndarray]:
+    """The study's RQ3 counts per level as (runs, followers) arrays."""
+    runs = study_runs()
+    rows = runs[(runs.rq == 3) & (runs.metric == metric)
+                & (runs.follower.astype(float) <= followers)]
+    return {str(level): g.pivot(index="run", columns="follower", values="value").to_numpy(float)
+            for level, g in rows.groupby("level", sort=False)}
+
+
+def _figures(table: pd.DataFrame, suite: dict[str, Any], per_follower: tuple[str, ...],
+             followers: int, fig_dir: Path, is_paper: bool, policies: list[str]) -> list[str]:
+    md: list[str] = []
+    study_rq = {v: k for k, v in GROUP_OF_RQ.items()}
+    unwrapped_only = alignment_rule(suite) == UNWRAPPED
+    for (policy, group), rows in table.groupby(["policy", "group"], sort=False):
+        name = f"{_slug(policy)}_{group}"
+        rq = study_rq.get(group) if is_paper else None
+        if group in per_follower:
+            metrics = COUNT_METRICS
+            study = None
+            if rq is not None or unwrapped_only:
+                metrics = ("count_sep", "count_coh", "count_align_unwrapped")
+            if rq is not None:
+                study = {m: _study_per_follower(m.replace("_unwrapped", ""), followers)
+                         for m in metrics}
+            path = figures.follower_bars(rows, metrics, f"{policy}: {group}, per follower",
+                                         fig_dir / name, followers, study)
+        else:
+            metrics, study = V_METRICS, None
+            if rq is not None or unwrapped_only:
+                metrics = ("V_sep", "V_coh", "V_align_unwrapped")
+            if rq is not None:
+                study = {m: study_groups(rq, m.replace("_unwrapped", "")) for m in metrics}
+            path = figures.level_bars(rows, metrics, f"{policy}: {group} "
+                                      f"({rows.factor.iloc[0]})", fig_dir / name, study,
+                                      followers)
+        md += [f"![{policy} {group}](figures/{path.name})", ""]
+    md += ["![Safety per case and policy](figures/safety.png)", ""] if len(policies) == 1 \
+        else []
+    figures.safety_bars(table, fig_dir / "safety")
+    if len(policies) > 1:
+        plot = table.assign(total=table[list(V_METRICS)].sum(axis=1))
+        figures.policy_bars(plot, "total", fig_dir / "policies_total",
+                            "Total violation V_sep + V_coh + V_align per case")
+    md += _trajectory_figures(table, fig_dir)
+    return md
+
+
+def _trajectory_figures(table: pd.DataFrame, fig_dir: Path) -> list[str]:
+    if "trajectory" not in table:
+        return []
+    md = ["### Sample trajectories (first seed of each case)", ""]
+    out = fig_dir.parent
+    shown = table.dropna(subset=["trajectory"]).drop_duplicates(["policy", "case"])
+    for _, row in shown.iterrows():
+        traj = out / "trajectories" / str(row.trajectory)
+        if not traj.is_file():
+            continue
+        try:
+            rec = Recording.from_parquet(traj)
+        except (OSError, ValueError) as exc:  # a damaged file must not sink the report
+            md.append(f"(trajectory of {row.policy}: {row.case}, seed {row.seed} not shown: "
+                      f"{exc})")
+            continue
+        path = figures.trajectories(rec, f"{row.policy}: {row.case}, seed {row.seed}",
+                                    fig_dir / f"traj_{_slug(row.policy)}_{_slug(row.case)}")
+        md.append(f"![{row.policy}: {row.case}](figures/{path.name})")
+    return [*md, ""]
+
+
+def _write_csvs(out: Path, csvs: dict[str, pd.DataFrame]) -> None:
+    """Writes this build's CSVs and removes the ones an earlier build wrote that this one
+    does not (another suite's verdicts, a comparison of policies no longer in the table)."""
+    for name, df in csvs.items():
+        write_text(out / name, df.to_csv(index=False))
+    stale = [p for p in out.glob("verdicts_*.csv") if p.name not in csvs]
+    stale += [out / n for n in OWN_CSVS if n not in csvs and (out / n).is_file()]
+    for path in stale:
+        path.unlink()

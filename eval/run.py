@@ -1,13 +1,21 @@
-"""``boids run``: one episode of a policy on a case, its metrics, trajectory and video."""
+"""``boids run``: one episode of a policy on a case, its metrics, trajectory, video and bags.
+
+The outputs go to a folder the run owns (:class:`~boids_env.eval.outputs.RunFolder`): a
+non-empty folder is refused unless ``overwrite``, which replaces only what an earlier run of
+ours wrote, and everything is written to a temporary folder that is moved into place when
+complete.
+"""
 
 from __future__ import annotations
 
-import json
+import time
 from pathlib import Path
 from typing import Any
 
 from boids_env.environment import BoidsEnv
 from boids_env.eval.episode import EpisodeResult, env_fields_for, run_episode
+from boids_env.eval.outputs import RunFolder
+from boids_env.files import write_json
 from boids_env.policies.registry import load_policy, split_preset
 
 METRIC_ROWS = (("V_sep", "separation violation (study)"), ("V_coh", "cohesion violation (study)"),
@@ -26,60 +34,101 @@ METRIC_ROWS = (("V_sep", "separation violation (study)"), ("V_coh", "cohesion vi
 
 
 def metrics_table(metrics: dict[str, Any]) -> str:
-    """The metrics as an aligned text table."""
+    """The metrics as an aligned text table (what ``boids run`` and the live window print)."""
     lines = [f"{'metric':<24} {'value':>10}  meaning", "-" * 72]
     for key, meaning in METRIC_ROWS:
+        if key not in metrics:
+            continue
         value = metrics[key]
+        if isinstance(value, float) and key.startswith("contacts_") and value.is_integer():
+            value = int(value)  # a count
         shown = f"{value:.4f}" if isinstance(value, float) else str(value)
         lines.append(f"{key:<24} {shown:>10}  {meaning}")
     return "\n".join(lines)
 
 
-def run(policy: str = "reynolds", *, out: str | Path | None = None, seed: int = 0,
-        preset: str = "paper", leader_weight: float | None = None, video: bool = False,
-        bag: bool = False, mcap: bool = False, frame_every: int = 2,
-        env_fields: dict[str, Any] | None = None,
-        quiet: bool = False) -> EpisodeResult:
-    """Runs one episode and writes ``metrics.json``, ``trajectory.parquet``, ``config.json``
-    (and ``episode.gif`` with ``video``, ``episode.bag`` with ``bag``, the ROS 2 MCAP bag
-    folder ``episode_mcap`` with ``mcap``) to ``out``."""
+def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: bool = False,
+        seed: int = 0, preset: str = "paper", leader_weight: float | None = None,
+        video: bool | str | None = None, bag: bool = False, mcap: bool = False,
+        bag_start: float | None = None, frame_every: int = 2,
+        env_fields: dict[str, Any] | None = None, quiet: bool = False,
+        progress: bool = True) -> EpisodeResult:
+    """Runs one episode and writes its outputs to ``out``.
+
+    Args:
+        policy: a policy spec (see :func:`~boids_env.policies.registry.load_policy`).
+        out: the run's folder (None: nothing is written): ``metrics.json``, ``config.json``,
+            ``trajectory.parquet``, ``manifest.json``, and on request ``episode.gif`` /
+            ``episode.mp4``, ``episode.bag`` (ROS 1), ``episode_mcap/`` (ROS 2, MCAP).
+        overwrite: replace what an earlier run wrote in ``out`` (a non-empty folder is
+            refused otherwise); the user's own files there are kept.
+        seed: the episode's seed.
+        preset: Reynolds parameters of a bare ``reynolds`` policy.
+        leader_weight: override of the Reynolds leader weight.
+        video: ``"gif"`` (or True) or ``"mp4"`` (needs imageio-ffmpeg) to write a video.
+        bag, mcap: write the ROS 1 bag / the ROS 2 MCAP bag.
+        bag_start: the bags' start stamp, Unix time (s); None: the wall clock at writing.
+        frame_every: control steps per video frame.
+        env_fields: env config fields by flat name.
+        quiet: print nothing.
+        progress: progress bar while the video is encoded.
+    """
+    fmt = ("gif" if video else None) if isinstance(video, bool) or video is None else video
+    if fmt is not None:
+        from boids_env.eval.video import check_format
+
+        check_format(fmt)
+    folder = RunFolder(out, overwrite=overwrite) if out is not None else None  # refuse early
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
     policy, preset = split_preset(policy, preset)
     pol = load_policy(policy, preset=preset, **overrides)
     params = getattr(pol, "params", None)
-    env = BoidsEnv(render_mode="rgb_array" if video else None,
-                   **env_fields_for(pol, env_fields))
-    result = run_episode(env, pol, seed, record=True, frame_every=frame_every if video else 0)
-    if not quiet:
-        name = f"{policy} · preset {preset}" if params is not None else policy
-        print(f"policy {name} · robots {env.config.scenario.robots} · "
-              f"leader {env.config.scenario.leader_speed} m/s · seed {seed} · "
-              f"{result.wall_time:.2f} s wall")
-        print(metrics_table(result.metrics))
-    if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "metrics.json").write_text(json.dumps(result.metrics, indent=2))
-        shown_preset = preset if params is not None else None
-        config = {"env": env.config.to_dict(), "policy": policy, "preset": shown_preset,
-                  "policy_params": vars(params) if params is not None else None, "seed": seed}
-        (out / "config.json").write_text(json.dumps(config, indent=2))
-        assert result.recording is not None
-        result.recording.extra.update(policy=policy, preset=shown_preset)
-        result.recording.to_parquet(out / "trajectory.parquet")
-        if video:
-            import imageio.v3 as iio
+    env = BoidsEnv(**env_fields_for(pol, env_fields))
+    try:
+        result = run_episode(env, pol, seed, record=True)
+    finally:
+        env.close()
+    say = (lambda *a: None) if quiet else print
+    name = f"{policy} · preset {preset}" if params is not None else policy
+    say(f"policy {name} · robots {env.config.scenario.robots} · "
+        f"leader {env.config.scenario.leader_speed} m/s · seed {seed} · "
+        f"episode {result.wall_time:.2f} s wall")
+    say(metrics_table(result.metrics))
+    if folder is None:
+        return result
+    assert result.recording is not None
+    shown_preset = preset if params is not None else None
+    result.recording.extra.update(policy=policy, preset=shown_preset)
+    config = {"env": env.config.to_dict(), "policy": policy, "preset": shown_preset,
+              "policy_params": vars(params) if params is not None else None, "seed": seed}
+    start = time.perf_counter()
+    timings: list[str] = []
+    with folder as tmp:
+        write_json(tmp / "metrics.json", result.metrics)
+        write_json(tmp / "config.json", config)
+        result.recording.to_parquet(tmp / "trajectory.parquet")
+        if fmt is not None:
+            from boids_env.eval.video import write_video
 
-            iio.imwrite(out / "episode.gif", result.frames,
-                        duration=int(1000 * env.config.world.dt * frame_every / 2), loop=0)
+            info = write_video(result.recording, tmp / f"episode.{fmt}",
+                               frame_every=frame_every, progress=progress and not quiet)
+            timings.append(f"video {info.seconds:.1f} s for {info.frames} frames")
         if bag or mcap:
             from boids_env.rosbag import write_bag
 
+            began = time.perf_counter()
             if bag:
-                write_bag(result.recording, out / "episode.bag")
+                write_bag(result.recording, tmp / "episode.bag", start=bag_start)
             if mcap:
-                write_bag(result.recording, out / "episode_mcap", format="mcap")
-        if not quiet:
-            print(f"wrote {', '.join(sorted(p.name for p in out.iterdir()))} to {out}")
-    env.close()
+                write_bag(result.recording, tmp / "episode_mcap", format="mcap",
+                          start=bag_start)
+            timings.append(f"bags {time.perf_counter() - began:.1f} s")
+    written = sorted(p.name + ("/" if p.is_dir() else "") for p in folder.out.iterdir())
+    say(f"wrote {', '.join(written)} to {folder.out}")
+    if folder.replaced:
+        say(f"replaced the earlier run's {', '.join(folder.replaced)}; kept "
+            f"{', '.join(folder.kept) or 'nothing else'}")
+    say(f"writing took {time.perf_counter() - start:.1f} s wall"
+        + (f" ({'; '.join(timings)})" if timings else "")
+        + f"; episode {result.wall_time:.2f} s")
     return result

@@ -24,6 +24,12 @@ def test_parquet_round_trip_reproduces_metrics(tmp_path):
     assert back.metrics() == rec.metrics()
     np.testing.assert_array_equal(back.leader_path, rec.leader_path)
     assert back.extra == {"seed": 2}
+    # the policy's rule forces behind every command (zero at reset), for videos and markers
+    assert set(rec.forces) == {"separation", "cohesion", "alignment", "leader"}
+    assert rec.forces["leader"].shape == (len(rec.time), 6, 2)
+    assert not rec.forces["leader"][0].any() and rec.forces["leader"][-1].any()
+    for name, vec in rec.forces.items():
+        assert np.array_equal(back.forces[name], vec), name
 
 
 @pytest.mark.parametrize("fmt, name", [("ros1", "ep.bag"), ("mcap", "ep_mcap")])
@@ -40,10 +46,11 @@ def test_ros_bag_round_trip_reproduces_metrics(tmp_path, fmt, name):
     assert np.array_equal(back.positions, rec.positions)
     assert np.array_equal(back.commanded, rec.commanded)
     assert np.allclose(back.time, rec.time, atol=1e-9)
-    # a bag has no leader path (the deviation is NaN); every other metric is exact
-    path_keys = {"leader_path_deviation", "leader_path_deviation_max"}
-    ours = {k: v for k, v in back.metrics().items() if k not in path_keys}
-    assert ours == {k: v for k, v in rec.metrics().items() if k not in path_keys}
+    np.testing.assert_array_equal(back.leader_path, rec.leader_path)  # from /leader/path
+    got, want = back.metrics(), rec.metrics()
+    assert got.keys() == want.keys()
+    for key in want:  # every metric, exactly (the leader's path deviation included)
+        assert got[key] == want[key], (key, got[key], want[key])
 
 
 def test_unreadable_bag(tmp_path):

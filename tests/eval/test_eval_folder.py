@@ -84,7 +84,8 @@ def test_eval_cli_refuses_a_mixed_folder_and_a_file_as_out(tmp_path, capsys):
     # the first run's figure of case a is gone with the folder it was in
     assert "traj_reynolds_paper_a.png" in figures
     assert {p.name for p in (out / "figures").iterdir()} == {
-        "reynolds_paper_cases.png", "traj_reynolds_paper_b.png"}
+        f"{name}.{ext}" for name in ("reynolds_paper_cases", "traj_reynolds_paper_b", "safety")
+        for ext in ("png", "svg")}
     file_out = tmp_path / "a_file"
     file_out.write_text("x")
     assert main(["eval", "--out", str(file_out), "--suite", str(suite)]) == 2

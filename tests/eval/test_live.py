@@ -73,3 +73,61 @@ def test_live_loop_with_scripted_keys(monkeypatch):
     # about 11 steps of 0.055 m
     x, y = metrics["leader_position"]
     assert 0.4 < x < 0.8 and abs(y) < 0.05
+
+
+def test_messages_fade_after_a_few_seconds():
+    now = [100.0]
+    c = LiveControls(reynolds_params("paper"), clock=lambda: now[0])
+    assert c.message_opacity() == 0.0, "no message yet"
+    c.key_down("+")
+    assert c.message == "separation_weight = 1.1"
+    assert c.message_opacity() == 1.0
+    now[0] += 2.9
+    assert c.message_opacity() == 1.0, "fully shown for 3 s"
+    now[0] += 0.6
+    assert c.message_opacity() == pytest.approx(0.5), "then fading"
+    now[0] += 1.0
+    assert c.message_opacity() == 0.0, "gone after 4 s"
+    c.key_down("-")
+    assert c.message_opacity() == 1.0, "a new message shows again"
+    assert all(c.message not in line for line in c.hud_lines()), \
+        "the message is drawn apart (fading), not among the help lines"
+
+
+def test_the_live_window_prints_the_run_metrics_table_on_exit(monkeypatch, capsys):
+    from boids_env.eval import live
+    from boids_env.train.cli import main
+
+    metrics = {"V_sep": 0.5, "V_coh": 0.0, "V_align": 1.25, "duration": 3.0,
+               "touching_fraction": 0.1, "contacts_follower": 2.0}
+    monkeypatch.setattr(live, "run_live", lambda *a, **k: (None, metrics))
+    assert main(["run", "--render", "human"]) == 0
+    out = capsys.readouterr().out
+    assert "{" not in out, f"no raw dict: {out}"
+    assert "V_align" in out and "1.2500" in out and "alignment violation (study)" in out, out
+    assert "contacts_follower" in out and " 2  " in out, out
+
+
+def test_no_display_is_a_clear_cli_error(monkeypatch, capsys):
+    from boids_env.eval import live
+    from boids_env.render import NoDisplayError
+    from boids_env.train.cli import main
+
+    def no_display(*args, **kwargs):
+        raise NoDisplayError("no display for the live window (DISPLAY is not set)")
+
+    monkeypatch.setattr(live, "run_live", no_display)
+    assert main(["run", "--render", "human"]) == 2
+    assert "no display" in capsys.readouterr().err
+
+
+def test_the_live_loop_reports_the_safety_metrics(monkeypatch):
+    import pygame
+
+    keys = iter([[("down", "q")] if i == 25 else [] for i in range(26)])
+    monkeypatch.setattr(pygame.event, "get", lambda: [
+        pygame.event.Event(pygame.KEYDOWN, key=pygame.key.key_code(name))
+        for _, name in next(keys, [("down", "q")])])
+    _, metrics = run_live("reynolds", env_fields={"robots": 5})
+    assert metrics["steps"] == 25
+    assert {"touching_fraction", "mean_nn_distance", "polarization"} <= metrics.keys()

@@ -1,0 +1,184 @@
+"""ROS messages of a recording, for :func:`boids_env.rosbag.write_bag`: odometry and commands
+as the original system recorded them, plus what RViz and Foxglove need to show the flock as
+the study's Fig. 5 did: ``/clock``, ``/tf`` (``map`` -> ``robot_k``), robot markers, the rule
+forces as marker arrows and the leader's scripted path.
+
+The same builders serve ROS 1 (Noetic definitions) and ROS 2 (Humble definitions, which are
+Jazzy's on the wire for every type used here) through rosbags' type stores.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from boids_env import style
+
+FloatArray = npt.NDArray[np.float64]
+
+FRAME = "map"
+"""The world frame of every message."""
+STILL = 1e-3
+"""Speed (m/s) below which a measured velocity has no direction (the heading is kept)."""
+ARROW_SHAFT = 0.012
+"""Diameter (m) of a force arrow's shaft in the markers; its head is twice as wide."""
+
+
+def headings(commanded: FloatArray, velocities: FloatArray, still: float = STILL) -> FloatArray:
+    """Each robot's heading (rad, world frame) at each sample, (T, N, 2) -> (T, N): the
+    direction of its commanded velocity, else (no command) of its measured velocity, else
+    (standing still) the last heading; 0 (facing +x) before it first has one."""
+    cmd = np.asarray(commanded, dtype=float)
+    vel = np.asarray(velocities, dtype=float)
+    commanding = np.hypot(cmd[..., 0], cmd[..., 1]) > 0
+    moving = np.hypot(vel[..., 0], vel[..., 1]) > still
+    raw = np.where(commanding, np.arctan2(cmd[..., 1], cmd[..., 0]),
+                   np.arctan2(vel[..., 1], vel[..., 0]))
+    known = commanding | moving
+    out = np.zeros(raw.shape)
+    last = np.zeros(raw.shape[1])
+    for t in range(raw.shape[0]):
+        last = np.where(known[t], raw[t], last)
+        out[t] = last
+    return out
+
+
+def split_ns(ns: int) -> tuple[int, int]:
+    """Nanoseconds -> (seconds, nanoseconds) of a ROS time stamp."""
+    return ns // 10**9, ns % 10**9
+
+
+class Messages:
+    """Builds the messages of one bag from a rosbags type store.
+
+    Args:
+        store: rosbags type store (``ROS1_NOETIC`` or ``ROS2_HUMBLE``).
+        ros1: ROS 1 definitions (headers carry ``seq``; markers lack the ROS 2 fields).
+        robot_radius: for the robot markers (m).
+    """
+
+    def __init__(self, store: Any, ros1: bool, robot_radius: float) -> None:
+        self.t = store.types
+        self.ros1 = ros1
+        self.radius = robot_radius
+        t = self.t
+        self._zero36 = np.zeros(36, dtype=np.float64)
+        self._vec = t["geometry_msgs/msg/Vector3"]
+        self._forever = t["builtin_interfaces/msg/Duration"](sec=0, nanosec=0)
+        self._colours = {k: t["std_msgs/msg/ColorRGBA"](*(float(c) for c in v))
+                         for k, v in (("robot 0", style.rgb01(style.LEADER)),
+                                      ("robot", style.rgb01(style.FOLLOWER)),
+                                      *((name, style.rgb01(c))
+                                        for name, c in style.RULE_COLOURS.items()))}
+
+    def time(self, ns: int) -> Any:
+        sec, nanosec = split_ns(ns)
+        return self.t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
+
+    def header(self, ns: int, seq: int, frame: str = FRAME) -> Any:
+        if self.ros1:
+            return self.t["std_msgs/msg/Header"](seq=seq, stamp=self.time(ns), frame_id=frame)
+        return self.t["std_msgs/msg/Header"](stamp=self.time(ns), frame_id=frame)
+
+    def quaternion(self, yaw: float) -> Any:
+        """A rotation by ``yaw`` about z."""
+        return self.t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2),
+                                                      w=math.cos(yaw / 2))
+
+    def pose(self, x: float, y: float, yaw: float) -> Any:
+        point = self.t["geometry_msgs/msg/Point"](x=x, y=y, z=0.0)
+        return self.t["geometry_msgs/msg/Pose"](position=point, orientation=self.quaternion(yaw))
+
+    def twist(self, vx: float, vy: float) -> Any:
+        vec = self._vec
+        return self.t["geometry_msgs/msg/Twist"](linear=vec(x=vx, y=vy, z=0.0),
+                                                 angular=vec(x=0.0, y=0.0, z=0.0))
+
+    def odometry(self, header: Any, k: int, position: FloatArray, velocity: FloatArray,
+                 yaw: float) -> Any:
+        """nav_msgs/Odometry of robot ``k``: pose (position, heading) and measured velocity in
+        the map frame, as the original's odometry."""
+        t = self.t
+        pose = self.pose(float(position[0]), float(position[1]), yaw)
+        twist = self.twist(float(velocity[0]), float(velocity[1]))
+        return t["nav_msgs/msg/Odometry"](
+            header=header, child_frame_id=f"robot_{k}",
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=self._zero36),
+            twist=t["geometry_msgs/msg/TwistWithCovariance"](twist=twist,
+                                                             covariance=self._zero36))
+
+    def clock(self, ns: int) -> Any:
+        return self.t["rosgraph_msgs/msg/Clock"](clock=self.time(ns))
+
+    def tf(self, ns: int, seq: int, positions: FloatArray, yaws: FloatArray) -> Any:
+        """tf2_msgs/TFMessage: ``map`` -> ``robot_k`` for every robot."""
+        t = self.t
+        transforms = []
+        for k, ((x, y), yaw) in enumerate(zip(positions, yaws, strict=True)):
+            transform = t["geometry_msgs/msg/Transform"](
+                translation=self._vec(x=float(x), y=float(y), z=0.0),
+                rotation=self.quaternion(float(yaw)))
+            transforms.append(t["geometry_msgs/msg/TransformStamped"](
+                header=self.header(ns, seq), child_frame_id=f"robot_{k}", transform=transform))
+        return t["tf2_msgs/msg/TFMessage"](transforms=transforms)
+
+    def marker(self, header: Any, ns: str, marker_id: int, kind: int, action: int, pose: Any,
+               scale: tuple[float, float, float], colour: Any, points: list[Any]) -> Any:
+        t = self.t
+        fields: dict[str, Any] = dict(
+            header=header, ns=ns, id=marker_id, type=kind, action=action, pose=pose,
+            scale=self._vec(x=scale[0], y=scale[1], z=scale[2]), color=colour,
+            lifetime=self._forever, frame_locked=False, points=points, colors=[], text="",
+            mesh_resource="", mesh_use_embedded_materials=False)
+        if not self.ros1:  # fields ROS 2 added (Humble)
+            fields.update(texture_resource="", uv_coordinates=[], mesh_file=t[
+                "visualization_msgs/msg/MeshFile"](filename="", data=np.zeros(0, np.uint8)),
+                texture=t["sensor_msgs/msg/CompressedImage"](
+                    header=header, format="", data=np.zeros(0, np.uint8)))
+        return t["visualization_msgs/msg/Marker"](**fields)
+
+    def robot_markers(self, ns: int, seq: int, positions: FloatArray, yaws: FloatArray) -> Any:
+        """visualization_msgs/MarkerArray: a sphere of the robot's true size per robot, the
+        leader red, followers blue (namespace ``robots``, id k)."""
+        header = self.header(ns, seq)
+        d = 2 * self.radius
+        markers = [self.marker(header, "robots", k, 2, 0,  # SPHERE, ADD
+                               self.pose(float(x), float(y), float(yaw)), (d, d, d),
+                               self._colours["robot 0" if k == 0 else "robot"], [])
+                   for k, ((x, y), yaw) in enumerate(zip(positions, yaws, strict=True))]
+        return self.t["visualization_msgs/msg/MarkerArray"](markers=markers)
+
+    def force_markers(self, ns: int, seq: int, followers: FloatArray,
+                      forces: dict[str, FloatArray]) -> Any:
+        """visualization_msgs/MarkerArray: each rule's force on each follower as an arrow from
+        the follower (namespace = rule, id = robot k), scaled as in the videos
+        (:func:`boids_env.style.arrow_vectors`); a zero force deletes its arrow."""
+        header = self.header(ns, seq)
+        point = self.t["geometry_msgs/msg/Point"]
+        still = self.pose(0.0, 0.0, 0.0)
+        size = (ARROW_SHAFT, 2 * ARROW_SHAFT, 2.5 * ARROW_SHAFT)
+        markers = []
+        for name, vectors in forces.items():
+            colour = self._colours.get(name) or self.t["std_msgs/msg/ColorRGBA"](
+                *style.rgb01(style.OTHER_ARROW))
+            arrows = style.arrow_vectors(vectors)
+            for i, ((x, y), (dx, dy)) in enumerate(zip(followers, arrows, strict=True)):
+                if dx == 0 and dy == 0:
+                    markers.append(self.marker(header, name, i + 1, 0, 2, still, size, colour,
+                                               []))  # ARROW, DELETE
+                    continue
+                ends = [point(x=float(x), y=float(y), z=0.0),
+                        point(x=float(x + dx), y=float(y + dy), z=0.0)]
+                markers.append(self.marker(header, name, i + 1, 0, 0, still, size, colour,
+                                           ends))
+        return self.t["visualization_msgs/msg/MarkerArray"](markers=markers)
+
+    def path(self, ns: int, seq: int, points: FloatArray) -> Any:
+        """nav_msgs/Path of the leader's scripted path (a polyline in the map frame)."""
+        header = self.header(ns, seq)
+        poses = [self.t["geometry_msgs/msg/PoseStamped"](
+            header=header, pose=self.pose(float(x), float(y), 0.0)) for x, y in points]
+        return self.t["nav_msgs/msg/Path"](header=header, poses=poses)

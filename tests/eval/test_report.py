@@ -1,0 +1,180 @@
+"""The report as a page a reviewer reads, built from a synthetic paper-suite folder (two
+policies, the second one crowding): labelled alignment rules, no "-0", the study's bars,
+units, PNG + SVG, bootstrap CIs, a self-contained styled HTML page, safety verdicts, and a
+rebuild that leaves nothing stale."""
+
+import json
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from boids_env import parallel_env
+from boids_env.eval import figures
+from boids_env.eval.compare import policy_comparison, verdicts
+from boids_env.eval.episode import run_episode
+from boids_env.eval.report import build_report, num, signed
+from boids_env.eval.suites import PAPER
+from boids_env.policies import ReynoldsPolicy
+
+POLICIES = ("reynolds[paper]", "crowder")
+
+
+def _row(rng, policy, case, seed):
+    crowd = policy == "crowder"
+    n = int(case.env.get("robots", 13)) - 1
+    counts = [int(c) for c in rng.integers(0, 30, n)]
+    touching = float(np.clip(rng.normal(0.8 if crowd else 0.0, 0.02), 0, 1))
+    contacts = float(rng.integers(100, 140)) if crowd else 0.0
+    return {"policy": policy, "policy_spec": policy, "preset": "paper", "suite": "paper",
+            "case": case.name, "group": case.group, "factor": case.factor,
+            "level": case.level, "seed": seed,
+            "V_sep": abs(rng.normal(0.5, 0.05)), "V_coh": 0.0,  # an all-zero metric
+            "V_align": abs(rng.normal(1.8, 0.02)), "V_align_unwrapped": abs(rng.normal(1.9, 0.02)),
+            "count_sep": counts, "count_coh": [0] * n, "count_align": counts[::-1],
+            "count_align_unwrapped": counts, "min_distance": 0.07 if crowd else 0.3,
+            "collisions": int(contacts), "polarization": 0.95, "mean_leader_distance": 1.2,
+            "touching_fraction": touching, "mean_contact_pairs": 3 * touching,
+            "contacts_follower": contacts, "contacts_leader": 0.0,
+            "wall_fraction": 0.0, "mean_nn_distance": 0.2 if crowd else 0.3,
+            "leader_path_deviation": 0.03, "leader_path_deviation_max": 0.1,
+            "steps": 746, "duration": 74.6, "wall_time": 0.3}
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("eval")
+    rng = np.random.default_rng(0)
+    rows = [_row(rng, p, c, s) for p in POLICIES for c in PAPER.cases for s in range(5)]
+    table = pd.DataFrame(rows)
+    rec = run_episode(parallel_env(robots=4, max_cycles=30), ReynoldsPolicy(), 0).recording
+    (out / "trajectories").mkdir()
+    rec.to_parquet(out / "trajectories" / "t.parquet")
+    table["trajectory"] = [("t.parquet" if r["seed"] == 0 and r["case"] == "leader_speed=0.5"
+                            else None) for r in rows]
+    table.to_parquet(out / "results.parquet", index=False)
+    suite = {"name": "paper", "seeds": [0, 1, 2, 3, 4], "per_follower": ["rq3"],
+             "followers_analysed": 6,
+             "policies": [{"spec": p, "preset": "paper", "label": p} for p in POLICIES],
+             "cases": [{"name": c.name, "group": c.group, "factor": c.factor,
+                        "level": c.level, "env": c.env, "policy": c.policy}
+                       for c in PAPER.cases]}
+    (out / "suite.json").write_text(json.dumps(suite))
+    # an earlier build of another suite left these behind
+    (out / "figures").mkdir()
+    (out / "figures" / "speeds_old.png").write_bytes(b"stale")
+    (out / "verdicts_gone.csv").write_text("stale")
+    build_report(out)
+    return out
+
+
+def test_numbers_never_show_minus_zero(folder):
+    assert num(-0.0) == "0.000" and num(-1e-9) == "0.000" and num(-0.0012) == "-0.001"
+    assert signed(-0.0) == "0" and signed(1e-17) == "0" and signed(-0.0754) == "-0.0754"
+    text = (folder / "report.md").read_text()
+    for bad in ("(-0)", "(+0)", "Δ -0,", "Δ +0,"):
+        assert bad not in text, f"{bad!r} in the report"
+    assert not re.search(r"-0\.0+(?![0-9])", text), "a negative zero like -0.000"
+
+
+def test_every_table_names_its_alignment_rule(folder):
+    text = (folder / "report.md").read_text()
+    assert "Tukey HSD behind these verdicts (alignment: the study's unwrapped rule)" in text
+    assert "## Tukey HSD (FWER 0.05; alignment: wrapped into [0°, 180°])" in text
+    assert "V_align (wrapped)" in text and "V_align (study's unwrapped)" in text
+    assert text.count("the study's numbers beside ours (mean ± population std; alignment: "
+                      "the study's unwrapped rule)") == 2
+
+
+def test_figures_are_png_at_160_dpi_with_svg_beside_and_the_study_everywhere(folder):
+    from PIL import Image
+
+    names = {p.name for p in (folder / "figures").iterdir()}
+    assert "speeds_old.png" not in names, "a rebuild replaces figures/ whole"
+    pngs = sorted(n for n in names if n.endswith(".png"))
+    assert len(pngs) >= 9, pngs
+    for name in pngs:
+        assert name[:-4] + ".svg" in names, f"SVG beside {name}"
+        dpi = Image.open(folder / "figures" / name).info["dpi"][0]
+        assert dpi >= 150, (name, dpi)
+    for policy in ("reynolds_paper", "crowder"):
+        for rq in ("rq1", "rq2", "rq3"):
+            svg = (folder / "figures" / f"{policy}_{rq}.svg").read_text()
+            assert "study" in svg, f"the study's bars in {policy} {rq}"
+            assert "unwrapped" in svg, f"{policy} {rq}: the alignment rule is named"
+            assert "95 % bootstrap CI" in svg
+        rq3 = (folder / "figures" / f"{policy}_rq3.svg").read_text()
+        assert "study, 19 robots" in rq3 and "violating samples (0.1 s each)" in rq3
+    traj = (folder / "figures" / "traj_reynolds_paper_leader_speed_0.5.svg").read_text()
+    assert "x (m)" in traj and "y (m)" in traj, "trajectory axes in metres"
+    total = (folder / "figures" / "policies_total.svg").read_text()
+    assert "followers in violation (time average)" in total, "policy bars carry units"
+
+
+def test_an_all_zero_panel_says_so_and_cis_stay_non_negative(folder, tmp_path):
+    rq1 = (folder / "figures" / "reynolds_paper_rq1.svg").read_text()
+    assert "V_coh" in rq1  # ours all zero, but the study has cohesion data: bars, no note
+    rows = pd.DataFrame({"level": ["a"] * 3 + ["b"] * 3, "factor": "f",
+                         "V_coh": [0.0] * 6})
+    path = figures.level_bars(rows, ["V_coh"], "zeros", tmp_path / "z")
+    assert "all zero" in (tmp_path / "z.svg").read_text() and path.suffix == ".png"
+    mean, low, high = figures.mean_ci([0.0, 0.0, 0.0, 0.0, 1.0])
+    assert 0 <= low <= mean <= high, (low, mean, high)
+
+
+def test_safety_table_figure_and_verdicts(folder):
+    text = (folder / "report.md").read_text()
+    assert "## Safety per case" in text and "touching_fraction" in text
+    assert (folder / "figures" / "safety.png").is_file()
+    v = pd.read_csv(folder / "policy_verdicts.csv")
+    assert len(v) == 9 and set(v["policy"]) == {"crowder"}
+    assert (v["safety"] == "less safe").all(), v[["case", "safety", "safety_because"]]
+    assert v["safety_because"].str.contains("touching_fraction higher").all()
+    comp = pd.read_csv(folder / "policy_comparison.csv")
+    assert {"touching_fraction", "contacts", "wall_fraction", "V_sep", "total"} <= set(
+        comp["metric"])
+    walls = comp[comp.metric == "wall_fraction"]
+    assert (walls["direction"] == "no significant difference").all(), "equal: no difference"
+
+
+def test_safety_verdict_logic_on_hand_made_numbers():
+    base = {"policy": "a", "case": "c", "V_sep": [1, 1.1, 0.9, 1.0], "V_coh": [0] * 4,
+            "V_align": [1, 1, 1, 1.01], "touching_fraction": [0.5, 0.52, 0.48, 0.5],
+            "contacts_follower": [10, 11, 9, 10], "contacts_leader": [0] * 4,
+            "wall_fraction": [0] * 4}
+    safer = {**base, "policy": "b", "touching_fraction": [0.1, 0.12, 0.08, 0.1]}
+    same = {**base, "policy": "d"}
+    table = pd.concat([pd.DataFrame(d) for d in (base, safer, same)], ignore_index=True)
+    out = verdicts(policy_comparison(table)).set_index("policy")
+    assert out.loc["b", "safety"] == "safer" and "touching_fraction lower" in \
+        out.loc["b", "safety_because"]
+    assert out.loc["d", "safety"] == "as safe"
+    assert out.loc["d", "total"] == "no significant difference"
+
+
+def test_html_is_one_styled_self_contained_page(folder):
+    html = (folder / "report.html").read_text()
+    assert "<title>Evaluation report: suite paper — reynolds[paper] vs crowder</title>" in html
+    assert 'src="figures/' not in html, "every figure inlined"
+    assert html.count('src="data:image/png;base64,') >= 9
+    assert "<style>" in html and "font:" in html
+    assert re.search(r'<td class="good"[^>]*>reproduced</td>', html)
+    assert re.search(r'<td class="bad"[^>]*>less safe</td>', html)
+
+
+def test_a_rebuild_removes_what_it_no_longer_produces(folder):
+    assert not (folder / "verdicts_gone.csv").exists()
+    assert (folder / "verdicts_crowder.csv").is_file()
+    # the same folder with one policy: no comparison any more
+    table = pd.read_parquet(folder / "results.parquet")
+    table[table.policy == POLICIES[0]].to_parquet(folder / "results.parquet", index=False)
+    suite = json.loads((folder / "suite.json").read_text())
+    suite["policies"] = suite["policies"][:1]
+    (folder / "suite.json").write_text(json.dumps(suite))
+    build_report(folder)
+    names = {p.name for p in folder.iterdir()}
+    assert "policy_comparison.csv" not in names and "policy_verdicts.csv" not in names
+    assert "verdicts_crowder.csv" not in names
+    assert not any(p.name.startswith("crowder") for p in (folder / "figures").iterdir())
+    assert not [p for p in folder.iterdir() if p.name.startswith(".")], "no temporary left"
