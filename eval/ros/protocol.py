@@ -6,10 +6,13 @@ holonomic), ``/robot_k/cmd_vel`` (geometry_msgs/Twist, world frame), ``/tf`` (``
 ``robot_k``), ``/clock``; robot 0 is the leader.
 
 **Time.** The simulator is the clock (``/use_sim_time`` true), as Stage was. Tick k of an
-episode is stamped ``start + k·dt``; the first episode starts at :data:`CLOCK_START` (ROS reads
-time 0 as "no clock yet": ``rosbag record`` would wait, and refuses to write a message at
-time 0), each later one :data:`EPISODE_GAP` after the previous one ended. Every robot's odometry
-of one tick carries the same stamp.
+episode is stamped ``start + k·dt``. The clock starts at :data:`CLOCK_START` (ROS reads time 0
+as "no clock yet": ``rosbag record`` would wait, and refuses to write a message at time 0) and,
+while the simulator waits for its controller (and ``--wait-for`` nodes) before the first tick,
+runs at real time in steps of ``dt``, as Stage's clock runs before anything moves: sim-time
+nodes such as ``rosbag record -a`` need it to advance to find topics advertised after they
+started. Every later episode starts :data:`EPISODE_GAP` after the previous one ended. Every
+robot's odometry of one tick carries the same stamp.
 
 **Lockstep protocol** (``boids ros sim --lockstep``). The simulator publishes a tick's
 odometry, then waits until every follower has sent one command *after* that publication, then
@@ -72,10 +75,15 @@ def robot_frame(robot: int) -> str:
     return f"robot_{robot}"
 
 
-def stamp_ns(start: float, tick: int, dt: float) -> int:
-    """Stamp (ns) of ``tick`` in an episode starting at ``start`` seconds: integer
+def period_ns(dt: float) -> int:
+    """The control period in integer nanoseconds."""
+    return round(dt * 1e9)
+
+
+def stamp_ns(start_ns: int, tick: int, dt: float) -> int:
+    """Stamp (ns) of ``tick`` in an episode whose tick 0 is at ``start_ns``: integer
     arithmetic, so ticks are exactly ``dt`` apart."""
-    return round(start * 1e9) + tick * round(dt * 1e9)
+    return start_ns + tick * period_ns(dt)
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,7 @@ from boids_env.eval.ros.protocol import (
     cmd_topic,
     config_json,
     odom_topic,
+    period_ns,
     stamp_ns,
 )
 from boids_env.eval.run import metrics_table
@@ -73,8 +74,8 @@ class SimOptions:
     wait_for: tuple[str, ...] = ()
     """Nodes (e.g. ``/recorder``) that must subscribe to every topic of the graph before
     tick 0."""
-    settle: float = 0.5
-    """Seconds waited after the ``wait_for`` nodes registered, for their last connections."""
+    settle: float = 0.0
+    """Seconds waited after the ``wait_for`` nodes are connected, before tick 0."""
     out: str | None = None
     """Folder for ``metrics.json``, ``trajectory.parquet``, ``config.json`` (one subfolder per
     episode when there are several)."""
@@ -159,7 +160,7 @@ class SimNode:
                                           callback_args=k - 1, queue_size=QUEUE_SIZE,
                                           tcp_nodelay=True)
                          for k in range(1, self.robots)]
-        self._next_start = CLOCK_START
+        self._next_start_ns = period_ns(CLOCK_START)
         self._graph_ready = False
 
     # ------------------------------------------------------------------------ callbacks
@@ -187,45 +188,75 @@ class SimNode:
                 missing.append(f"a publisher on {', '.join(idle[:3])}"
                                + (f" (+{len(idle) - 3})" if len(idle) > 3 else ""))
         if self.options.wait_for:
-            import rosgraph
-
-            _, subscribers, _ = rosgraph.Master(self.name).getSystemState()
-            registered = {topic: set(nodes) for topic, nodes in subscribers}
-            ours = [self.clock_pub, self.tf_pub, *self.odom_pubs]
-            ours += [self.leader_pub] if self.leader_pub is not None else []
+            wanted = {odom_topic(k) for k in range(self.robots)}
+            wanted |= {cmd_topic(k) for k in range(0 if self.leader_pub else 1, self.robots)}
+            wanted |= {"/clock", "/tf"}
+            links = self._outbound_links(wanted)
             for node in self.options.wait_for:
                 node = "/" + node.strip("/")
-                unconnected = [p.resolved_name for p in ours
-                               if node not in {c.endpoint_id for c in p.impl.connections}]
-                unregistered = [cmd_topic(k) for k in range(1, self.robots)
-                                if node not in registered.get(cmd_topic(k), set())]
-                if unconnected or unregistered:
-                    missing.append(f"{node} on {len(unconnected) + len(unregistered)} topics")
+                absent = [t for t in wanted if not links.get(t) or any(
+                    node not in peers for peers in links[t])]
+                if absent:
+                    missing.append(f"{node} on {len(absent)} topics")
         return missing
 
+    def _outbound_links(self, topics: set[str]) -> dict[str, list[set[str]]]:
+        """For each topic, one set per publisher: the nodes that publisher is connected to.
+
+        Asked of the publishers themselves (the ROS slave API's ``getBusInfo``): rospy and
+        roscpp publishers list a subscriber only once its connection's handshake is done, from
+        when on it receives every message; the master, or the subscriber's own side, knows of
+        a subscription earlier, and messages published in between would be lost to it."""
+        import xmlrpc.client
+
+        import rosgraph
+
+        master = rosgraph.Master(self.name)
+        try:
+            publishers, _, _ = master.getSystemState()
+        except (rosgraph.MasterError, OSError):
+            return {}
+        by_topic = {topic: nodes for topic, nodes in publishers if topic in topics}
+        bus: dict[str, set[tuple[str, str]]] = {}
+        for node in {n for nodes in by_topic.values() for n in nodes}:
+            try:
+                code, _, info = xmlrpc.client.ServerProxy(master.lookupNode(node)).getBusInfo(
+                    self.name)
+            except (rosgraph.MasterError, OSError, xmlrpc.client.Error):
+                code, info = 0, []
+            # entries: (connection id, peer, direction, transport, topic, connected, …)
+            bus[node] = {(e[4], e[1]) for e in info if e[2] == "o"} if code == 1 else set()
+        return {topic: [{peer for t, peer in bus[node] if t == topic} for node in nodes]
+                for topic, nodes in by_topic.items()}
+
     def wait_for_graph(self) -> None:
-        """Holds tick 0 (publishing the start time on the latched ``/clock``, so sim-time
-        nodes such as ``rosbag record`` start) until the controller and the ``wait_for`` nodes
-        are connected."""
-        self.clock_pub.publish(self.msgs.clock(stamp_ns(self._next_start, 0, self.dt)))
+        """Holds tick 0 until the controller and the ``wait_for`` nodes are connected, the
+        latched ``/clock`` running meanwhile at real time in steps of ``dt`` (from
+        :data:`CLOCK_START`); the first episode then starts at the next step."""
         last_note = -WARN_EVERY
         start = time.monotonic()
+        period = period_ns(self.dt)
+        shown = -1
         while not self.rospy.is_shutdown():
+            now = time.monotonic()
+            steps = int((now - start) / self.dt)
+            if steps != shown:
+                self.clock_pub.publish(self.msgs.clock(self._next_start_ns + steps * period))
+                shown = steps
             missing = self._graph_missing()
             if not missing:
                 break
-            now = time.monotonic()
             if now - last_note >= WARN_EVERY and not self.options.quiet:
                 print(f"{self.name}: waiting for {'; '.join(missing)} "
                       f"({now - start:.0f} s)", flush=True)
                 last_note = now
             time.sleep(POLL)
-        if self.options.wait_for:
-            time.sleep(self.options.settle)
+        time.sleep(self.options.settle)
+        self._next_start_ns += (shown + 1) * period
         self._graph_ready = True
 
     # ------------------------------------------------------------------------ publishing
-    def _publish_tick(self, tick: int, start: float) -> None:
+    def _publish_tick(self, tick: int, start: int) -> None:
         snap = self.env.snapshot()
         stamp = self.msgs.time(stamp_ns(start, tick, self.dt))
         self.clock_pub.publish(self.msgs.Clock(clock=stamp))
@@ -261,12 +292,11 @@ class SimNode:
         self.env.reset(seed=seed)
         recorder = Recorder()
         recorder.capture(self.env)
-        start = self._next_start
-        info = EpisodeInfo(index, seed, stamp_ns(start, 0, self.dt),
-                           float(self.env.leader.initial_heading))
-        self.rospy.set_param(EPISODE_PARAM, info.to_json())
         if not self._graph_ready:
             self.wait_for_graph()
+        start = self._next_start_ns
+        info = EpisodeInfo(index, seed, start, float(self.env.leader.initial_heading))
+        self.rospy.set_param(EPISODE_PARAM, info.to_json())
         stats = {"late_ticks": 0, "timed_out": 0}
         extra0, rejected0 = self.board.extra, self.board.rejected
         self.board.open_tick(new_episode=True)
@@ -302,7 +332,7 @@ class SimNode:
             self.board.wait_all(DRAIN)
         else:
             time.sleep(min(DRAIN, self.dt))
-        self._next_start = start + tick * self.dt + EPISODE_GAP
+        self._next_start_ns = stamp_ns(start, tick, self.dt) + period_ns(EPISODE_GAP)
         stats.update(extra_commands=self.board.extra - extra0,
                      rejected_commands=self.board.rejected - rejected0,
                      controllers=self._controllers())
