@@ -30,7 +30,7 @@ import numpy as np
 from boids_env.config import EnvConfig
 from boids_env.eval.episode import env_fields_for
 from boids_env.eval.ros import reconfigure
-from boids_env.eval.ros.messages import Messages
+from boids_env.eval.ros.messages import Messages, publisher
 from boids_env.eval.ros.protocol import (
     CONFIG_PARAM,
     EPISODE_PARAM,
@@ -123,8 +123,7 @@ class ControllerNode:
         self.dt = self.config.world.dt
         self.agents = [f"follower_{i}" for i in range(1, self.robots)]
         rospy.set_param("~policy", options.policy)
-        self.cmd_pubs = [rospy.Publisher(cmd_topic(k), Twist, queue_size=QUEUE_SIZE,
-                                         tcp_nodelay=True) for k in range(1, self.robots)]
+        self.cmd_pubs = [publisher(rospy, cmd_topic(k), Twist) for k in range(1, self.robots)]
         self.marker_pub = (rospy.Publisher("~markers", MarkerArray, queue_size=10)
                            if options.markers else None)
         self._lock = threading.Lock()

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from boids_env.environment import BoidsEnv
-from boids_env.eval.ros.messages import Messages
+from boids_env.eval.ros.messages import Messages, publisher
 from boids_env.eval.ros.protocol import (
     CLOCK_START,
     CMD_TIMEOUT,
@@ -144,18 +144,16 @@ class SimNode:
         rospy.set_param(CONFIG_PARAM, config_json(config.to_dict()))
         self.board = CommandBoard(self.robots - 1, options.cmd_timeout)
         self._leader_command = np.zeros(2)
-        self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=QUEUE_SIZE, latch=True)
-        self.tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=QUEUE_SIZE)
-        self.odom_pubs = [rospy.Publisher(odom_topic(k), Odometry, queue_size=QUEUE_SIZE,
-                                          latch=True, tcp_nodelay=True)
+        self.clock_pub = publisher(rospy, "/clock", Clock, latch=True)
+        self.tf_pub = publisher(rospy, "/tf", TFMessage)
+        self.odom_pubs = [publisher(rospy, odom_topic(k), Odometry, latch=True)
                           for k in range(self.robots)]
         self.leader_pub = None
         if self.external:
             self.leader_sub = rospy.Subscriber(cmd_topic(0), Twist, self._on_leader,
                                                queue_size=QUEUE_SIZE, tcp_nodelay=True)
         else:
-            self.leader_pub = rospy.Publisher(cmd_topic(0), Twist, queue_size=QUEUE_SIZE,
-                                              tcp_nodelay=True)
+            self.leader_pub = publisher(rospy, cmd_topic(0), Twist)
         self.cmd_subs = [rospy.Subscriber(cmd_topic(k), Twist, self._on_command,
                                           callback_args=k - 1, queue_size=QUEUE_SIZE,
                                           tcp_nodelay=True)
