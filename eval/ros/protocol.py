@@ -223,6 +223,8 @@ class TickAssembler:
         self._lock = threading.Lock()
         self._pending: dict[int, dict[int, tuple[float, float, float, float]]] = {}
         self._last: int | None = None
+        self._epochs: dict[int, int] = {}
+        self._epoch = 0
         self.latest: dict[int, tuple[int, float, float, float, float]] = {}
         """Each robot's latest odometry (stamp, x, y, vx, vy), for :meth:`snapshot`."""
 
@@ -233,10 +235,16 @@ class TickAssembler:
             previous = self.latest.get(robot)
             if previous is not None and stamp < previous[0]:
                 # One connection's messages arrive in order, so a robot whose stamps go
-                # back has a restarted source (a new simulator, a replayed bag): start over.
-                self._last = None
+                # back has a restarted source (a new simulator, a replayed bag): it enters
+                # a new epoch, and the first robot to do so starts the assembly over.
+                self._epochs[robot] = self._epochs.get(robot, 0) + 1
+            epoch = self._epochs.get(robot, 0)
+            if epoch > self._epoch:
+                self._epoch, self._last = epoch, None
                 self._pending.clear()
             self.latest[robot] = (stamp, x, y, vx, vy)
+            if epoch < self._epoch:
+                return None  # from the source before its restart
             if self._last is not None and stamp <= self._last:
                 return None  # a tick already returned, or one passed over
             entry = self._pending.setdefault(stamp, {})
