@@ -187,13 +187,16 @@ class CommandBoard:
             fresh = self._generation == self._current
             return np.where(fresh[:, None], self._values, 0.0)
 
-    def latest(self, now: float) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    def latest(self, now: float) -> tuple[FloatArray, npt.NDArray[np.bool_],
+                                          npt.NDArray[np.bool_]]:
         """(F, 2) each follower's latest command of this episode if it arrived at most
-        ``timeout`` seconds before ``now``, else zero; and which followers timed out."""
+        ``timeout`` seconds before ``now``, else zero; which followers timed out; and which
+        are applied stale (not an answer to the tick published last: a late controller)."""
         with self._cond:
             live = (self._generation >= self._episode_start) & (
                 now - self._arrival <= self.timeout)
-            return np.where(live[:, None], self._values, 0.0), ~live
+            stale = live & (self._generation != self._current)
+            return np.where(live[:, None], self._values, 0.0), ~live, stale
 
 
 @dataclass(frozen=True)

@@ -108,8 +108,10 @@ class SimEpisode:
     wall_time: float
     """Seconds from tick 0 to the last tick."""
     stats: dict[str, Any]
-    """Diagnostics: late ticks, follower-ticks that timed out, extra or rejected commands,
-    the controllers seen."""
+    """Diagnostics (real time): ticks the simulator itself was late for (``late_ticks``),
+    follower-ticks that got the zero command of the timeout (``timed_out``) or a command that
+    did not answer the tick just published (``stale``); commands beyond one per follower and
+    tick (``extra_commands``) or not finite (``rejected_commands``); the controllers seen."""
 
 
 class SimNode:
@@ -295,7 +297,7 @@ class SimNode:
         start = self._next_start_ns
         info = EpisodeInfo(index, seed, start, float(self.env.leader.initial_heading))
         self.rospy.set_param(EPISODE_PARAM, info.to_json())
-        stats = {"late_ticks": 0, "timed_out": 0}
+        stats = {"late_ticks": 0, "timed_out": 0, "stale": 0}
         extra0, rejected0 = self.board.extra, self.board.rejected
         self.board.open_tick(new_episode=True)
         began = time.monotonic()
@@ -314,8 +316,9 @@ class SimNode:
                     stats["late_ticks"] += 1
                     deadline = now
                 time.sleep(max(0.0, deadline - now))
-                commands, timed_out = self.board.latest(time.monotonic())
+                commands, timed_out, stale = self.board.latest(time.monotonic())
                 stats["timed_out"] += int(timed_out.sum())
+                stats["stale"] += int(stale.sum())
             if self.external:
                 self.env.set_leader_command(self._leader_command)
             self.env.step(dict(zip(self.agents, commands, strict=True)))

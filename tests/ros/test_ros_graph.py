@@ -16,10 +16,13 @@ from boids_env.recording import Recording
 pytestmark = pytest.mark.slow
 
 FIELDS = ("positions", "velocities", "commanded", "time")
-REAL_TIME_TOLERANCE = 0.15
-"""Largest |ΔV_x| allowed between a real-time graph and the in-process run of the same case
-(a command that misses its 0.1 s tick is applied one tick late; on an idle machine none does
-and the runs are identical)."""
+REAL_TIME_TOLERANCE = 0.3
+"""Largest |ΔV_x| allowed between a real-time graph and the in-process run of the same 15 s
+case: four ticks' worth of every follower flipping a violation flag (0.08 each). A command that
+misses its 0.1 s tick is applied one tick late, and one that is 0.5 s late is replaced by
+zero; on an idle machine none is late and the runs are identical."""
+REAL_TIME_DRIFT = 0.5
+"""Largest position difference (m) allowed between the real-time and in-process runs."""
 
 
 def _in_process(policy: str = "reynolds", seed: int = 0, **fields):
@@ -131,9 +134,12 @@ def test_real_time_graph_stays_within_tolerance_of_boids_run(ros):
             key, metrics[key], reference.metrics[key])
     ours = Recording.from_parquet(out / "trajectory.parquet")
     gap = np.abs(ours.positions - reference.recording.positions).max()
-    assert gap < 0.1, f"real-time positions drift {gap:.3f} m from the in-process run"
+    assert gap < REAL_TIME_DRIFT, f"real-time positions drift {gap:.3f} m from in-process"
     stats = json.loads((out / "config.json").read_text())["ros"]
-    assert stats["mode"] == "real time" and stats["wall_time"] == pytest.approx(15, abs=1.5)
+    assert stats["mode"] == "real time" and 14.9 <= stats["wall_time"] <= 25, stats
+    if stats["late_ticks"] == 0 and stats["timed_out"] == 0 and stats["stale"] == 0:
+        # every answer arrived within its tick: the real-time run is the lockstep one
+        _assert_same_recording(ours, reference.recording, "punctual real-time graph")
 
 
 def test_killing_the_controller_stops_the_robots_after_the_timeout(ros):

@@ -45,12 +45,14 @@ def test_real_time_board_zeroes_a_command_older_than_the_timeout():
     board = CommandBoard(2, timeout=0.5)
     board.open_tick(new_episode=True)
     board.post(0, 0.4, 0.0, now=10.0)
+    board.open_tick()
     board.post(1, 0.0, 0.3, now=10.3)
-    commands, timed_out = board.latest(now=10.5)
+    commands, timed_out, stale = board.latest(now=10.5)
     assert np.array_equal(commands, [[0.4, 0.0], [0.0, 0.3]]) and not timed_out.any()
-    commands, timed_out = board.latest(now=10.51)  # follower 0's command is 0.51 s old
+    assert stale.tolist() == [True, False], "follower 0 did not answer the last tick"
+    commands, timed_out, stale = board.latest(now=10.51)  # follower 0's is 0.51 s old
     assert np.array_equal(commands, [[0.0, 0.0], [0.0, 0.3]]), commands
-    assert timed_out.tolist() == [True, False]
+    assert timed_out.tolist() == [True, False] and not stale.any()
 
 
 def test_commands_from_before_an_episode_are_stale_in_it():
@@ -58,7 +60,7 @@ def test_commands_from_before_an_episode_are_stale_in_it():
     board.open_tick(new_episode=True)
     board.post(0, 0.4, 0.0, now=1.0)
     board.open_tick(new_episode=True)
-    commands, timed_out = board.latest(now=1.1)
+    commands, timed_out, _ = board.latest(now=1.1)
     assert np.array_equal(commands, [[0.0, 0.0]]) and timed_out.all()
 
 
