@@ -187,6 +187,12 @@ class SimNode:
             if idle:
                 missing.append(f"a publisher on {', '.join(idle[:3])}"
                                + (f" (+{len(idle) - 3})" if len(idle) > 3 else ""))
+            else:  # the controllers must also receive every odometry from tick 0 on
+                for node in self._controllers():
+                    deaf = [p.resolved_name for p in self.odom_pubs
+                            if node not in {c.endpoint_id for c in p.impl.connections}]
+                    if deaf:
+                        missing.append(f"{node} to subscribe to {len(deaf)} odometry topics")
         if self.options.wait_for:
             wanted = {odom_topic(k) for k in range(self.robots)}
             wanted |= {cmd_topic(k) for k in range(0 if self.leader_pub else 1, self.robots)}
