@@ -195,6 +195,7 @@ def _ros_parser(sub: argparse._SubParsersAction) -> None:
     ros = p.add_subparsers(dest="ros_command", required=True)
     _ros_sim_parser(ros)
     _ros_controller_parser(ros)
+    _ros_reconfigure_parser(ros)
     _ros_metrics_parser(ros)
 
 
@@ -302,6 +303,31 @@ def _cmd_ros_controller(args: argparse.Namespace) -> int:
         env_fields=fields, sync=args.sync, seed=args.seed, max_ticks=args.max_ticks,
         markers=not args.no_markers, quiet=args.quiet)
     run_controller(options, [sys.argv[0], *_ros_args(args.ros_args)])
+    return 0
+
+
+def _ros_reconfigure_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("reconfigure", help="change a running controller's Reynolds "
+                       "parameters live (dynamic_reconfigure), or show them",
+                       description="Calls the node's dynamic_reconfigure services, as "
+                       "rqt_reconfigure and dynparam do: boids ros reconfigure "
+                       "leader_weight=1.2 horizon=0.8. Without assignments, prints the "
+                       "current values.")
+    p.add_argument("changes", nargs="*", metavar="NAME=VALUE",
+                   help="separation_weight, cohesion_weight, alignment_weight, leader_weight, "
+                   "horizon, desired_separation, max_speed, max_force")
+    p.add_argument("--node", default="/reynolds_controller",
+                   help="the controller node (/reynolds_controller)")
+    p.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for it (10)")
+    p.set_defaults(func=_cmd_ros_reconfigure)
+
+
+def _cmd_ros_reconfigure(args: argparse.Namespace) -> int:
+    from boids_env.eval.ros.reconfigure import parse_assignments, reconfigure_node
+
+    changes = parse_assignments(args.changes)
+    for name, value in reconfigure_node(args.node, changes, args.timeout).items():
+        print(f"{name} = {value:g}")
     return 0
 
 

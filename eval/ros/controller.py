@@ -136,6 +136,14 @@ class ControllerNode:
             self.server = Server(reconfigure.config_type(
                 params, self.config.observation.horizon), self._on_reconfigure)
             self._apply_params()
+            # dynamic_reconfigure starts from the values already on the parameter server
+            # (this run's _name:=value arguments, a launch file's, or a crashed run's): say so
+            differ = {k: v for k, v in reconfigure.values(self.policy.params).items()
+                      if v != reconfigure.values(params)[k]}
+            if differ and not options.quiet:
+                print(f"{self.name}: from the parameter server: "
+                      + ", ".join(f"{k} = {v:g}" for k, v in differ.items())
+                      + f" (rosparam delete {self.name} to start from the preset)", flush=True)
         self.assembler = TickAssembler(self.robots)
         self.ticks: queue.Queue[Tick] = queue.Queue()
         self._source: str | None = None
@@ -286,6 +294,14 @@ class ControllerNode:
         return self.answered
 
     def shutdown(self) -> None:
+        """Leaves the graph; its Reynolds parameters leave the parameter server with it, so
+        the next run starts from its preset and arguments again."""
+        names = ["policy", *(reconfigure.TUNABLE if self.server is not None else ())]
+        for name in names:
+            try:
+                self.rospy.delete_param(f"~{name}")
+            except (KeyError, OSError):
+                pass
         self.rospy.signal_shutdown("boids ros controller finished")
 
 

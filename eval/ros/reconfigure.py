@@ -76,6 +76,43 @@ def apply(params: ReynoldsParams, config: dict[str, Any]) -> tuple[ReynoldsParam
         return params, str(exc)
 
 
+def parse_assignments(items: list[str]) -> dict[str, float]:
+    """``["leader_weight=1.2", "horizon=0.8"]`` -> ``{"leader_weight": 1.2, "horizon": 0.8}``;
+    a ``ValueError`` naming the item for anything else."""
+    changes = {}
+    for item in items:
+        name, eq, text = item.partition("=")
+        if not eq or name not in TUNABLE:
+            raise ValueError(f"expected name=value with name one of {list(TUNABLE)}, got "
+                             f"{item!r}")
+        try:
+            changes[name] = float(text)
+        except ValueError:
+            raise ValueError(f"{name} must be a number, got {text!r}") from None
+    return changes
+
+
+def reconfigure_node(node: str, changes: dict[str, float], timeout: float = 10.0
+                     ) -> dict[str, float]:
+    """Changes ``node``'s parameters through its dynamic_reconfigure services (what
+    rqt_reconfigure and ``dynparam`` do; Debian's ``dynparam`` script needs a catkin package
+    path that its packages do not install) and returns the values it then reports (the server
+    clamps to the ranges and refuses invalid combinations). No changes: just the values."""
+    from boids_env.eval.ros.rospy_path import import_rospy
+
+    rospy = import_rospy()
+    from dynamic_reconfigure.client import Client
+
+    rospy.init_node("boids_reconfigure", anonymous=True, disable_signals=True)
+    try:
+        client = Client(node, timeout=timeout)
+        config = client.update_configuration(changes) if changes else \
+            client.get_configuration(timeout=timeout)
+        return {k: v for k, v in dict(config).items() if k in TUNABLE}
+    finally:
+        rospy.signal_shutdown("done")
+
+
 def values(params: ReynoldsParams) -> dict[str, float]:
     """The panel's view of ``params``."""
     current = asdict(params)

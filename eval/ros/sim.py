@@ -349,6 +349,14 @@ class SimNode:
         return SimEpisode(info, recording, recording.metrics(), wall, stats)
 
     def shutdown(self) -> None:
+        """Leaves the graph, removing the parameters that describe this run (a controller
+        started later must wait for the next simulator, not read this one's config);
+        ``/use_sim_time`` stays, as Stage leaves it."""
+        for name in (CONFIG_PARAM, EPISODE_PARAM):
+            try:
+                self.rospy.delete_param(name)
+            except (KeyError, OSError):
+                pass
         self.rospy.signal_shutdown("boids ros sim finished")
 
 

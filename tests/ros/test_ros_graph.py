@@ -177,6 +177,12 @@ def test_a_policy_node_drives_a_bare_odometry_source_and_is_reconfigured_live(ro
     robots = ros.node("fake", "fake_robots.py", "--robots", "4", "--ticks", "60", "--out",
                       str(out), "--reconfigure-at", "35", "--leader-weight", "2.0")
     assert robots.wait(90) == 0, robots.output() + controller.output()
+    tool = ros.boids("reconfigure", "ros", "reconfigure", "max_force=0.3", "horizon=5")
+    assert tool.wait(60) == 0, tool.output()
+    # the server clamps the horizon to the sensing horizon (the observations' 1 m)
+    assert "max_force = 0.3" in tool.output() and "horizon = 1\n" in tool.output(), \
+        tool.output()
+    assert ros.param("/reynolds_controller/max_force") == 0.3
     controller.stop()
     log = json.loads(out.read_text())
     # every tick answered once, for every follower

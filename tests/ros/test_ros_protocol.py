@@ -168,3 +168,12 @@ def test_the_description_encodes_as_dynamic_reconfigure_does():
     assert [p.name for p in msg.groups[0].parameters] == list(reconfigure.TUNABLE)
     assert {d.name: d.value for d in msg.max.doubles}["horizon"] == 2.0
     assert len(extract_params(cfg.config_description)) == len(reconfigure.TUNABLE)
+
+
+def test_reconfigure_assignments_are_parsed_with_clear_errors():
+    assert reconfigure.parse_assignments(["leader_weight=1.2", "horizon=0.8"]) == {
+        "leader_weight": 1.2, "horizon": 0.8}
+    with pytest.raises(ValueError, match="name=value"):
+        reconfigure.parse_assignments(["mass=1"])
+    with pytest.raises(ValueError, match="leader_weight must be a number"):
+        reconfigure.parse_assignments(["leader_weight=heavy"])
