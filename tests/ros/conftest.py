@@ -4,8 +4,8 @@ Every test that takes ``ros`` gets its own ``roscore`` on a free port (never 113
 ``ROS_MASTER_URI``, ``ROS_HOME`` and ``ROS_LOG_DIR`` pointing at it and at the test's tmp
 folder, so tests run in parallel (pytest-xdist) and never touch a user's ROS graph. Nodes are
 processes (rospy allows one node per process, bound to one master): ``ros.boids(...)`` runs
-the ``boids`` command, ``ros.spawn(...)`` anything else. Every process is stopped, by its id,
-when the test ends.
+the ``boids`` command, ``ros.spawn(...)`` anything else. Each runs in a process group of its
+own, which is stopped (by that group's id) when the test ends.
 
 Without ROS 1 installed these tests are skipped, unless ``BOIDS_REQUIRE_ROS=1`` (CI sets it)
 makes that a failure.
@@ -83,16 +83,23 @@ class Process:
         pytest.fail(f"{self.name} never printed {text!r} within {timeout} s; output:\n"
                     f"{self.output()[-3000:]}")
 
-    def stop(self, sig: int = signal.SIGINT, timeout: float = 5.0) -> None:
-        """Stops the process (this one, by its id): ``sig``, then SIGKILL."""
-        if self.popen.poll() is not None:
-            return
-        self.popen.send_signal(sig)
+    def stop(self, sig: int = signal.SIGINT, timeout: float = 10.0) -> None:
+        """Stops the process and its children (its own process group, e.g. ``rosbag
+        record``'s recorder binary): ``sig``, then SIGKILL after ``timeout`` seconds."""
+        if self.popen.poll() is None:
+            self._signal_group(sig)
+            try:
+                self.popen.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                self._signal_group(signal.SIGKILL)
+                self.popen.wait(timeout=timeout)
+        self._signal_group(signal.SIGKILL)  # a child left behind by the process
+
+    def _signal_group(self, sig: int) -> None:
         try:
-            self.popen.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            self.popen.kill()
-            self.popen.wait(timeout=timeout)
+            os.killpg(self.popen.pid, sig)  # the group this test created for the process
+        except ProcessLookupError:
+            pass
 
 
 @dataclass
@@ -112,7 +119,8 @@ class RosGraph:
         log = self.folder / f"{name}.log"
         with open(log, "wb") as out:
             popen = subprocess.Popen(list(argv), env=self.env, stdout=out,
-                                     stderr=subprocess.STDOUT, cwd=cwd or self.folder)
+                                     stderr=subprocess.STDOUT, cwd=cwd or self.folder,
+                                     start_new_session=True)
         proc = Process(name, popen, log)
         self.processes.append(proc)
         return proc

@@ -52,7 +52,7 @@ def _run_lockstep(ros, *sim_args: str, policy: str = "reynolds", recorder: bool 
     assert sim.wait(240) == 0, sim.output()
     controller.stop()
     if recorder:
-        bag.stop()  # SIGINT: rosbag closes the bag
+        bag.stop(timeout=120)  # SIGINT: rosbag writes what it has queued, closes the bag
         assert (ros.folder / "run.bag").exists(), bag.output()
     return out, sim
 
