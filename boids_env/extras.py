@@ -7,6 +7,7 @@ import importlib.util
 
 EXTRAS: dict[str, tuple[str, ...]] = {
     "render": ("pygame", "imageio"),
+    "video": ("pygame", "imageio", "imageio_ffmpeg"),
     "ros": ("rosbags",),
     "eval": ("statsmodels", "matplotlib", "tqdm", "tabulate", "markdown"),
     "train": ("stable_baselines3", "torch", "tensorboard", "tqdm", "rich"),

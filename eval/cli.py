@@ -18,10 +18,11 @@ POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learn
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
-    """Adds ``run``, ``eval`` and ``report`` to the ``boids`` subparsers."""
+    """Adds ``run``, ``eval``, ``report`` and ``ros`` to the ``boids`` subparsers."""
     _run_parser(sub)
     _eval_parser(sub)
     _report_parser(sub)
+    _ros_parser(sub)
 
 
 def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
@@ -238,4 +239,209 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from boids_env.eval.report import build_report
 
     print(f"wrote {build_report(args.dir)}")
+    return 0
+
+
+# ----------------------------------------------------------------------------------- ros
+ROS_ARGS_HELP = ("ROS remapping arguments, as any ROS node takes them: name:=value, "
+                 "_param:=value (a private parameter), __name:=node")
+
+
+def _ros_args(values: list[str]) -> list[str]:
+    bad = [v for v in values if ":=" not in v]
+    if bad:
+        raise ValueError(f"unexpected arguments {bad}: only ROS remapping arguments "
+                         f"(name:=value) may follow the options")
+    return values
+
+
+def _ros_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("ros", help="the study's ROS 1 graph: the world as a simulator node, "
+                       "any policy as the controller node, metrics of a recorded bag",
+                       description="ROS 1 nodes on the study's topics (/robot_k/odom, "
+                       "/robot_k/cmd_vel). Needs ROS 1's Python packages (Debian/Ubuntu: "
+                       "apt-get install ros-core python3-rospy python3-nav-msgs "
+                       "python3-geometry-msgs python3-visualization-msgs python3-tf2-msgs "
+                       "python3-dynamic-reconfigure python3-rosbag; or ROS Noetic) and a "
+                       "running roscore.")
+    ros = p.add_subparsers(dest="ros_command", required=True)
+    _ros_sim_parser(ros)
+    _ros_controller_parser(ros)
+    _ros_reconfigure_parser(ros)
+    _ros_metrics_parser(ros)
+
+
+def _ros_sim_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("sim", help="the pymunk world as a ROS node in place of Stage",
+                       description="Publishes /robot_k/odom (10 Hz), /tf, /clock and the "
+                       "scripted leader's /robot_0/cmd_vel; applies the followers' "
+                       "/robot_k/cmd_vel. Ends with the episode (--episodes N for more), "
+                       "prints the study's metrics, writes metrics.json, "
+                       "trajectory.parquet and config.json with --out.")
+    p.add_argument("--robots", type=int, default=13, help="group size, leader included (13)")
+    p.add_argument("--leader-speed", type=float, default=0.55, help="m/s (0.55)")
+    p.add_argument("--path", choices=PATHS, default="square",
+                   help="leader path (square); external: driven by /robot_0/cmd_vel")
+    p.add_argument("--waypoints", type=parse_waypoints, default=None,
+                   help='targets for --path waypoints, "x,y x,y ..." in metres')
+    p.add_argument("--seed", type=int, default=0, help="seed of the first episode (0)")
+    p.add_argument("--max-cycles", type=int, default=None, help="hard step limit")
+    p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
+    p.add_argument("--no-wrap", action="store_true",
+                   help="the study's unwrapped alignment angle rule")
+    p.add_argument("--episodes", type=int, default=1, help="episodes to run (1)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="advance a tick only when every follower answered it "
+                   "(deterministic); default: real time, like Stage")
+    p.add_argument("--cmd-timeout", type=float, default=None,
+                   help="real time: a follower without a command for this long (s) gets "
+                   "(0, 0), as a robot driver's safety stop (0.5)")
+    p.add_argument("--no-wait", action="store_true",
+                   help="real time: start at once instead of waiting for a controller")
+    p.add_argument("--wait-for", action="append", default=[], metavar="NODE",
+                   help="also hold tick 0 until NODE (e.g. /recorder) subscribes to every "
+                   "topic of the graph; repeatable")
+    p.add_argument("--out", default=None, help="output folder (none: print only)")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("ros_args", nargs="*", help=ROS_ARGS_HELP)
+    p.set_defaults(func=_cmd_ros_sim)
+
+
+def _cmd_ros_sim(args: argparse.Namespace) -> int:
+    import sys
+
+    from boids_env.eval.ros.protocol import CMD_TIMEOUT
+    from boids_env.eval.ros.sim import SimOptions, run_sim
+
+    if args.no_wait and args.lockstep:
+        raise ValueError("--no-wait is for real time; --lockstep always waits for a controller")
+    options = SimOptions(
+        env_fields=_env_fields(args), lockstep=args.lockstep, episodes=args.episodes,
+        seed=args.seed, cmd_timeout=CMD_TIMEOUT if args.cmd_timeout is None
+        else args.cmd_timeout, wait_controller=not args.no_wait,
+        wait_for=tuple(args.wait_for), out=args.out, quiet=args.quiet)
+    run_sim(options, [sys.argv[0], *_ros_args(args.ros_args)])
+    return 0
+
+
+def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("controller", help="any policy as the study's reynolds_controller "
+                       "node", description="Subscribes to every /robot_k/odom, builds the "
+                       "env's observations, publishes every follower's /robot_k/cmd_vel and "
+                       "(Reynolds) the rule-force markers on ~markers; Reynolds parameters are "
+                       "ROS parameters, changeable live with dynamic_reconfigure "
+                       "(rosrun dynamic_reconfigure dynparam set /reynolds_controller "
+                       "leader_weight 1.1).")
+    p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
+    p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
+                   help="Reynolds parameters (paper)")
+    p.add_argument("--leader-weight", type=float, default=None,
+                   help="Reynolds leader weight (preset's: 1.0)")
+    p.add_argument("--robots", type=int, default=None,
+                   help="group size of the odometry source (default: boids ros sim's, read "
+                   "from the /boids/env_config parameter)")
+    p.add_argument("--arena-half-size", type=float, default=None,
+                   help="m, with --robots (5.0)")
+    p.add_argument("--sync", choices=("stamp", "rate"), default="stamp",
+                   help="stamp: answer each tick once every robot reported it (default); "
+                   "rate: every 0.1 s from the latest odometry (unsynchronised robots)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="policy seed when the source announces no episode (0)")
+    p.add_argument("--max-ticks", type=int, default=None,
+                   help="exit after answering this many ticks")
+    p.add_argument("--no-markers", action="store_true", help="do not publish ~markers")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("ros_args", nargs="*", help=ROS_ARGS_HELP)
+    p.set_defaults(func=_cmd_ros_controller)
+
+
+def _cmd_ros_controller(args: argparse.Namespace) -> int:
+    import sys
+
+    require(*_policy_extras([args.policy]), purpose=f"boids ros controller --policy "
+            f"{args.policy}")
+    from boids_env.eval.ros.controller import ControllerOptions, run_controller
+
+    fields: dict[str, Any] = {}
+    if args.robots is not None:
+        fields["robots"] = args.robots
+    if args.arena_half_size is not None:
+        if args.robots is None:
+            raise ValueError("--arena-half-size goes with --robots (otherwise the simulator's "
+                             "config is used)")
+        fields["arena_half_size"] = args.arena_half_size
+    options = ControllerOptions(
+        policy=args.policy, preset=args.preset, leader_weight=args.leader_weight,
+        env_fields=fields, sync=args.sync, seed=args.seed, max_ticks=args.max_ticks,
+        markers=not args.no_markers, quiet=args.quiet)
+    run_controller(options, [sys.argv[0], *_ros_args(args.ros_args)])
+    return 0
+
+
+def _ros_reconfigure_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("reconfigure", help="change a running controller's Reynolds "
+                       "parameters live (dynamic_reconfigure), or show them",
+                       description="Calls the node's dynamic_reconfigure services, as "
+                       "rqt_reconfigure and dynparam do: boids ros reconfigure "
+                       "leader_weight=1.2 horizon=0.8. Without assignments, prints the "
+                       "current values.")
+    p.add_argument("changes", nargs="*", metavar="NAME=VALUE",
+                   help="separation_weight, cohesion_weight, alignment_weight, leader_weight, "
+                   "horizon, desired_separation, max_speed, max_force")
+    p.add_argument("--node", default="/reynolds_controller",
+                   help="the controller node (/reynolds_controller)")
+    p.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for it (10)")
+    p.set_defaults(func=_cmd_ros_reconfigure)
+
+
+def _cmd_ros_reconfigure(args: argparse.Namespace) -> int:
+    from boids_env.eval.ros.reconfigure import parse_assignments, reconfigure_node
+
+    changes = parse_assignments(args.changes)
+    for name, value in reconfigure_node(args.node, changes, args.timeout).items():
+        print(f"{name} = {value:g}")
+    return 0
+
+
+def _ros_metrics_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("metrics", help="the study's metrics of a bag recorded from the live "
+                       "graph (rosbag record)",
+                       description="Reads a bag of /robot_k/odom and /robot_k/cmd_vel "
+                       "recorded from boids ros sim and a controller, and prints the metrics "
+                       "table of boids run (the live graph's commands answer the odometry: "
+                       "each is the command of the next sample).")
+    p.add_argument("bag", help="the .bag file (or a ROS 2 bag folder)")
+    p.add_argument("--config", default=None,
+                   help="the run's config.json (boids ros sim --out) for its thresholds and "
+                   "leader path (default: the study's, robots from the bag)")
+    p.add_argument("--out", default=None,
+                   help="also write metrics.json and trajectory.parquet here")
+    p.set_defaults(func=_cmd_ros_metrics)
+
+
+def _cmd_ros_metrics(args: argparse.Namespace) -> int:
+    require("ros", purpose="boids ros metrics")
+    import json
+    from pathlib import Path
+
+    from boids_env.config import EnvConfig
+    from boids_env.eval.ros.bags import read_live_bag
+    from boids_env.eval.run import metrics_table
+    from boids_env.files import atomic_path, write_json
+
+    config = None
+    if args.config is not None:
+        config = EnvConfig.from_dict(json.loads(Path(args.config).read_text())["env"])
+    recording = read_live_bag(args.bag, config)
+    metrics = recording.metrics()
+    print(f"bag {args.bag} · {recording.positions.shape[1]} robots · "
+          f"{recording.positions.shape[0] - 1} steps")
+    print(metrics_table(metrics))
+    if args.out is not None:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        write_json(out / "metrics.json", metrics)
+        with atomic_path(out / "trajectory.parquet") as tmp:
+            recording.to_parquet(tmp)
+        print(f"wrote metrics.json, trajectory.parquet to {out}")
     return 0
