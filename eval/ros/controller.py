@@ -150,6 +150,7 @@ class ControllerNode:
         self._deaf: set[str] = set()
         self._last_stamp: int | None = None
         self.episode: EpisodeInfo | None = None
+        self._episode_start: int | None = None
         self.answered = 0
         self.odom_subs = [rospy.Subscriber(odom_topic(k), Odometry, self._on_odom,
                                            callback_args=k, queue_size=QUEUE_SIZE,
@@ -224,6 +225,7 @@ class ControllerNode:
         if info is not None and info.start_ns > stamp:
             info = None  # announced for a later tick: not this episode's
         self.episode = info
+        self._episode_start = info.start_ns if info is not None else stamp
         seed = info.seed if info is not None else self.options.seed
         self.policy.reset(seed)
         self.observer.reset(np.random.default_rng(seed),
@@ -232,6 +234,15 @@ class ControllerNode:
             which = f"episode {info.index}, seed {seed}" if info else f"seed {seed}"
             print(f"{self.name}: new episode ({which}) at stamp {stamp / 1e9:.1f} s",
                   flush=True)
+
+    def _holding(self, stamp: int) -> bool:
+        """Whether the followers are held still at ``stamp``: the first ``startup_time``
+        seconds of an episode when the config (a learned model's env fields) asks for
+        ``startup_hold``, as the env holds them in-process."""
+        sc = self.config.scenario
+        if not sc.startup_hold or self._episode_start is None:
+            return False
+        return (stamp - self._episode_start) / 1e9 < sc.startup_time - 1e-9
 
     def _await_listener(self) -> None:
         """Before the first command to a node that sends odometry, waits (once, at most
@@ -259,6 +270,8 @@ class ControllerNode:
         # the robot, or the simulator, limits the speed, as the env does)
         commands = self.observer.to_world(
             np.array([actions[a] for a in self.agents], dtype=np.float64))
+        if self._holding(tick.stamp_ns):
+            commands = np.zeros_like(commands)
         self._await_listener()
         for pub, (vx, vy) in zip(self.cmd_pubs, commands.tolist(), strict=True):
             pub.publish(self.msgs.twist(vx, vy))
