@@ -60,7 +60,7 @@ def training_rate(config: Any, rollouts: int = 3) -> dict[str, Any]:
             "copies": config.copies, "follower_steps_per_s": rollouts * chunk / seconds}
 
 
-def training_scaling(recipe: str = "ppo_followers", cores: list[int] | None = None
+def training_scaling(recipe: str = "ppo_safe", cores: list[int] | None = None
                      ) -> list[dict[str, Any]]:
     """Training throughput of ``recipe`` on 1, 2 and all cores, each beside the raw env rate
     of the same copies. A setting of n cores pins its process (and the env workers it

@@ -260,13 +260,15 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             bad = [a for a, row in zip(self.agents, arr, strict=True)
                    if not np.isfinite(row).all()]
             raise ValueError(f"actions must be finite; NaN or inf from {bad}")
-        return self._advance(clip_speed(arr, self.episode_config.world.max_speed))
+        return self._advance(arr)
 
     def _advance(self, actions: npt.NDArray[np.float64]) -> ArrayStep:
-        """One control step from checked, speed-limited actions (F, 2) in the observation
-        frame: the physics, the metrics and rewards, the episode's end, the next
-        observations."""
-        commands = self._observer.to_world(actions)
+        """One control step from checked actions (F, 2) in the observation frame: their speed
+        limited in the world frame (as a simulator receiving world-frame commands limits
+        it, so that a policy in another frame gets the same commands bit for bit), the
+        physics, the metrics and rewards, the episode's end, the next observations."""
+        commands = clip_speed(self._observer.to_world(actions),
+                              self.episode_config.world.max_speed)
         world, leader = self._world, self._leader
         assert world is not None and leader is not None
         sc = self.episode_config.scenario
@@ -332,7 +334,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         else:
             arr = np.stack([as_velocities(v, f"action of {a}", (2,))
                             for a, v in zip(self.agents, values, strict=True)])
-        return clip_speed(arr, self.episode_config.world.max_speed)
+        return arr
 
     def _observe(self) -> npt.NDArray[np.float32]:
         assert self._world is not None

@@ -13,8 +13,8 @@ from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
 
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
-               "shipped PPO followers), an SB3 model .zip, or module:object (a Policy "
-               "instance, class or factory)")
+               "shipped PPO followers), learned-study (PPO on the study's reward alone), an "
+               "SB3 model .zip, or module:object (a Policy instance, class or factory)")
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
@@ -109,7 +109,9 @@ def parse_start(text: str) -> float:
 
 def _policy_extras(specs: list[str]) -> list[str]:
     """Extras the named policies need (a saved SB3 model needs ``train``)."""
-    return ["train"] if any(s == "learned" or s.endswith(".zip") for s in specs) else []
+    from boids_env.policies.registry import MODELS
+
+    return ["train"] if any(s in MODELS or s.endswith(".zip") for s in specs) else []
 
 
 def _env_fields(args: argparse.Namespace) -> dict[str, Any]:

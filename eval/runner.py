@@ -74,9 +74,9 @@ class PolicySpec:
     @functools.cached_property
     def fingerprint(self) -> str:
         """Changes when the policy does (a model file's content is hashed, once)."""
-        from boids_env.policies.registry import LEARNED_MODEL
+        from boids_env.policies.registry import MODELS
 
-        path = LEARNED_MODEL if self.spec == "learned" else Path(self.spec)
+        path = MODELS.get(self.spec, Path(self.spec))
         if path.suffix == ".zip" and path.is_file():
             digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
             return f"{self.spec}#{digest}"

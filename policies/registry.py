@@ -1,5 +1,6 @@
 """Turns a policy spec (``reynolds``, ``reynolds@boids_ros``, ``random``, ``learned``,
-``model.zip``, ``module:object``) into a :class:`~boids_env.policies.base.Policy`."""
+``learned-study``, ``model.zip``, ``module:object``) into a
+:class:`~boids_env.policies.base.Policy`."""
 
 from __future__ import annotations
 
@@ -13,9 +14,14 @@ from boids_env.policies.base import Policy
 from boids_env.policies.random_policy import RandomPolicy
 from boids_env.policies.reynolds import ReynoldsPolicy
 
-BUILTIN = ("reynolds", "random", "learned")
-LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_followers.zip"
-"""The shipped PPO follower policy (train/recipes/ppo_followers.toml); needs the train extra."""
+BUILTIN = ("reynolds", "random", "learned", "learned-study")
+LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_safe.zip"
+"""The shipped PPO follower policy (recipe ``ppo_safe``: leader frame, safe reward, varied paths,
+sizes and speeds); needs the train extra."""
+STUDY_MODEL = Path(__file__).parent / "models" / "ppo_study.zip"
+"""PPO trained on the study's reward alone (recipe ``ppo_study``): it wins on the study's metrics
+while its robots touch most of the time; kept to show what optimising those metrics does."""
+MODELS = {"learned": LEARNED_MODEL, "learned-study": STUDY_MODEL}
 
 
 def split_preset(spec: str, preset: str = "paper") -> tuple[str, str]:
@@ -40,7 +46,8 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
 
     Args:
         spec: ``reynolds`` (the study's controller; ``reynolds@boids_ros`` picks a preset),
-            ``random``, ``learned`` (the shipped PPO followers), a path to a saved SB3 model
+            ``random``, ``learned`` (the shipped PPO followers), ``learned-study`` (PPO on the
+            study's reward alone), a path to a saved SB3 model
             (``.zip``), or ``module:object`` naming a Policy instance, a Policy class (built
             with no arguments) or a factory returning a Policy.
         preset: Reynolds parameter preset (``paper`` or ``boids_ros``) unless ``spec`` names
@@ -54,8 +61,7 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         return ReynoldsPolicy(preset, **reynolds_overrides)
     if spec == "random":
         return RandomPolicy(max_speed)
-    if spec == "learned":
-        spec = str(LEARNED_MODEL)
+    spec = str(MODELS.get(spec, spec))
     if spec.endswith(".zip"):
         if not Path(spec).is_file():
             raise FileNotFoundError(f"policy model file not found: {spec}")
@@ -93,8 +99,7 @@ def check_policy_spec(spec: str, preset: str = "paper") -> None:
     spec, preset = split_preset(spec, preset)
     if spec in ("reynolds", "random"):
         return
-    if spec == "learned":
-        spec = str(LEARNED_MODEL)
+    spec = str(MODELS.get(spec, spec))
     if spec.endswith(".zip"):
         if not Path(spec).is_file():
             raise FileNotFoundError(f"policy model file not found: {spec}")

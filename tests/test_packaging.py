@@ -34,9 +34,11 @@ def test_the_wheel_has_one_top_level_name_and_all_its_data(wheel):
     names = zipfile.ZipFile(wheel).namelist()
     tops = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
     assert tops == {"boids_env"}, tops
-    for needed in ("boids_env/train/recipes/ppo_followers.toml",
-                   "boids_env/policies/models/ppo_followers.zip",
-                   "boids_env/policies/models/ppo_followers_evaluations.csv",
+    for needed in ("boids_env/train/recipes/ppo_safe.toml",
+                   "boids_env/train/recipes/ppo_study.toml",
+                   "boids_env/policies/models/ppo_safe.zip",
+                   "boids_env/policies/models/ppo_safe_evaluations.csv",
+                   "boids_env/policies/models/ppo_study.zip",
                    "boids_env/eval/data/study_runs.csv", "boids_env/eval/data/study_tukey.csv"):
         assert needed in names, needed
     for package in ("", "policies/", "eval/", "train/", "bench/"):
@@ -74,7 +76,7 @@ def test_installed_wheel_runs_every_command_beside_a_users_train_and_eval(wheel,
     _run([boids, "eval", "--suite", "one.toml", "--workers", "1", "--no-progress",
           "--out", "e"], work, env)
     assert (work / "e" / "report.html").is_file()
-    _run([boids, "train", "--config", "ppo_followers", "--timesteps", "1000", "--copies", "1",
+    _run([boids, "train", "--config", "ppo_safe", "--timesteps", "1000", "--copies", "1",
           "--group-sizes", "5", "--eval-every", "0", "--checkpoint-every", "0",
           "--no-progress", "--out", "t"], work, env)
     assert (work / "t" / "model.zip").is_file()

@@ -20,12 +20,12 @@ from boids_env.config import (
 ALGORITHMS = ("ppo", "sac")
 DEVICES = ("cpu", "cuda", "auto")
 RECIPES = Path(__file__).parent / "recipes"
-"""The shipped training recipes (``boids train --config ppo_followers``)."""
+"""The shipped training recipes (``boids train --config ppo_safe``)."""
 
 
 def resolve_recipe(spec: str | Path) -> Path:
-    """A TOML file path as given, or the shipped recipe of that name (``ppo_followers`` or
-    ``ppo_followers.toml``); ``FileNotFoundError`` naming both otherwise."""
+    """A TOML file path as given, or the shipped recipe of that name (``ppo_safe`` or
+    ``ppo_safe.toml``); ``FileNotFoundError`` naming both otherwise."""
     path = Path(spec)
     if path.is_file():
         return path

@@ -34,7 +34,8 @@ def test_run_prints_no_preset_for_a_policy_without_one(tmp_path, capsys):
 
 def test_run_help_lists_every_builtin_policy():
     text = build_parser()._subparsers._group_actions[0].choices["run"].format_help()
-    for name in ("reynolds", "boids_ros", "random", "learned", ".zip", "module:object"):
+    for name in ("reynolds", "boids_ros", "random", "learned", "learned-study", ".zip",
+                 "module:object"):
         assert name in text, name
 
 
@@ -88,7 +89,7 @@ def test_ctrl_c_is_a_short_message_and_exit_130(tmp_path, capsys, monkeypatch):
 def test_train_config_accepts_a_shipped_recipe_name():
     from boids_env.train.config import TrainConfig, resolve_recipe
 
-    path = resolve_recipe("ppo_followers")
+    path = resolve_recipe("ppo_safe")
     assert path.is_file() and TrainConfig.from_toml(path).algorithm == "ppo"
     with pytest.raises(FileNotFoundError, match="shipped recipe"):
         resolve_recipe("no_such_recipe")
