@@ -11,6 +11,7 @@ from typing import Any
 from boids_env.config import PATHS, PRESETS
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
+from boids_env.realism import REALISMS
 
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
                "shipped PPO followers), learned-study (PPO on the study's reward alone), an "
@@ -61,6 +62,9 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-cycles", type=int, default=None, help="hard step limit")
     p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
+    p.add_argument("--realism", choices=REALISMS, default=None,
+                   help="ROS/Stage realism: none (the ideal world, default) or ros (stall, "
+                   "timing jitter, staggered start; see the README)")
     p.add_argument("--no-wrap", action="store_true",
                    help="the study's unwrapped alignment angle rule")
     p.add_argument("--out", default="runs/latest", help="output folder (runs/latest)")
@@ -127,6 +131,8 @@ def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
         fields["arena_half_size"] = args.arena_half_size
     if args.no_wrap:
         fields["wrap_alignment"] = False
+    if args.realism is not None:
+        fields["realism"] = args.realism
     return fields
 
 
@@ -175,7 +181,15 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                    help="preset of a bare 'reynolds' policy (paper)")
     p.add_argument("--suite", default="paper", help="paper (default), robustness, or a TOML "
                    "file")
-    p.add_argument("--seeds", type=int, default=None, help="seeds 0..N-1 (suite's: 5)")
+    seeds = p.add_mutually_exclusive_group()
+    seeds.add_argument("--seeds", type=int, default=None, help="seeds 0..N-1 (suite's: 5)")
+    seeds.add_argument("--blocks", type=int, default=None, metavar="K",
+                       help="K independent blocks of 5 seeds (seeds 0..5K-1), the study's "
+                       "design repeated: the report scores each block as its own "
+                       "reproduction (findings per block, mean and range)")
+    p.add_argument("--realism", choices=REALISMS, default=None,
+                   help="ROS/Stage realism in every case: none (the ideal world, default) or "
+                   "ros (stall, timing jitter, staggered start; see the README)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
     p.add_argument("--backend", choices=BACKENDS, default="process",
                    help="process (isolated worker processes, default), ray, or inline (in "
@@ -209,7 +223,9 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         raise ValueError(f"--episode-timeout must be >= 0 seconds (0: no limit), got "
                          f"{args.episode_timeout:g}")
     policies = [PolicySpec.parse(spec, args.preset) for spec in specs]
-    suite = load_suite(args.suite).with_seeds(args.seeds)
+    suite = load_suite(args.suite).with_seeds(args.seeds).with_blocks(args.blocks)
+    if args.realism is not None:
+        suite = suite.with_env(realism=args.realism)
     table = run_suite(policies, suite, args.out, workers=args.workers, backend=args.backend,
                       keep_trajectories=args.keep_trajectories, progress=not args.no_progress,
                       episode_timeout=args.episode_timeout or None, overwrite=args.overwrite)
@@ -289,6 +305,9 @@ def _ros_sim_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the first episode (0)")
     p.add_argument("--max-cycles", type=int, default=None, help="hard step limit")
     p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
+    p.add_argument("--realism", choices=REALISMS, default=None,
+                   help="ROS/Stage realism: none (the ideal world, default) or ros (stall, "
+                   "timing jitter, staggered start; see the README)")
     p.add_argument("--no-wrap", action="store_true",
                    help="the study's unwrapped alignment angle rule")
     p.add_argument("--episodes", type=int, default=1, help="episodes to run (1)")

@@ -24,12 +24,14 @@ from boids_env.eval.html import write_html
 from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, pair_difference
 from boids_env.eval.study import (
     GROUP_OF_RQ,
+    block_scores,
     study_groups,
     study_runs,
     study_summary,
     study_tukey,
     verdicts,
 )
+from boids_env.eval.suites import BLOCK_SIZE
 from boids_env.files import atomic_path, write_text
 from boids_env.metrics import SAFETY_KEYS
 from boids_env.recording import Recording
@@ -47,7 +49,7 @@ SAFETY_METRICS = ("touching_fraction", "mean_contact_pairs", "contacts_follower"
 distance."""
 assert set(SAFETY_KEYS) <= set(SAFETY_METRICS)
 OWN_CSVS = ("stats_anova.csv", "stats_tukey.csv", "stats_tukey_study.csv",
-            "policy_comparison.csv", "policy_verdicts.csv", "safety.csv")
+            "policy_comparison.csv", "policy_verdicts.csv", "safety.csv", "blocks.csv")
 """CSVs a build may write (besides ``verdicts_<policy>.csv``); stale ones are removed."""
 
 
@@ -238,13 +240,14 @@ def build_report(out: str | Path) -> Path:
           f"baseline). Seeds: {', '.join(map(str, suite['seeds']))}. Episodes in the table: "
           f"{len(table)} (cases that are the same configuration share their runs). "
           f"Mean ± population std over seeds unless stated; figures show 95 % "
-          f"percentile-bootstrap confidence intervals.", ""]
+          f"percentile-bootstrap confidence intervals.{_realism_note(suite)}", ""]
     md += failed_episodes(out)
     summary = ["## Summary", ""]
     if is_paper:
         _, tukey_study = analyse(table, per_follower, followers, unwrapped=True)
         csvs["stats_tukey_study.csv"] = tukey_study
         md += _paper_sections(table, tukey_study, policies, csvs, summary)
+        md += _block_section(table, policies, per_follower, csvs, summary)
     md += ["## Results per case", "",
            f"Two alignment columns: the rule the episodes ran with ({rule}) and the study's "
            f"unwrapped rule. Distances in m.", "",
@@ -269,6 +272,15 @@ def build_report(out: str | Path) -> Path:
     write_text(out / "report.md", text)
     write_html(text, out / "report.html", title, out)
     return out / "report.md"
+
+
+def _realism_note(suite: dict[str, Any]) -> str:
+    """" Realism: ros in every case." when the episodes ran with a realism preset."""
+    found = {str(c.get("env", {}).get("realism")) for c in suite.get("cases", [])
+             if isinstance(c, dict) and isinstance(c.get("env"), dict)}
+    found.discard("None")
+    found.discard("none")
+    return f" **Realism: {', '.join(sorted(found))}** (ROS/Stage realism)." if found else ""
 
 
 def _paper_sections(table: pd.DataFrame, tukey_study: pd.DataFrame, policies: list[str],
@@ -297,6 +309,39 @@ def _paper_sections(table: pd.DataFrame, tukey_study: pd.DataFrame, policies: li
                f"alignment: {UNWRAPPED})", "", _md_table(v_table), "", _md_table(count_table),
                ""]
     return md
+
+
+def _block_section(table: pd.DataFrame, policies: list[str], per_follower: tuple[str, ...],
+                   csvs: dict[str, pd.DataFrame], summary: list[str]) -> list[str]:
+    """With two or more blocks of 5 seeds (``boids eval --blocks K``): each block scored as
+    its own reproduction of the study (its design: 5 runs per case), per policy."""
+    seeds = sorted(table["seed"].unique())
+    if len(seeds) < 2 * BLOCK_SIZE:
+        return []
+    parts = []
+    for policy in policies:
+        scores = block_scores(table, policy, per_follower, BLOCK_SIZE)
+        scores.insert(0, "policy", policy)
+        parts.append(scores)
+        found = scores["findings"]
+        summary.append(
+            f"- **{policy}**, {len(scores)} blocks of {BLOCK_SIZE} seeds: findings reproduced "
+            f"per block {', '.join(map(str, found))} of {scores['of'].iloc[0]} (mean "
+            f"{found.mean():.2f}, range {found.min()}–{found.max()}); magnitudes within 2× "
+            f"mean {scores['magnitudes_within_2x'].mean():.1f} of "
+            f"{scores['of_means'].iloc[0]}; 19-robot cohesion finding in "
+            f"{int(scores['cohesion_19_vs_13'].sum())} of {len(scores)} blocks.")
+    blocks = pd.concat(parts, ignore_index=True)
+    csvs["blocks.csv"] = blocks
+    return ["## Reproduction score in blocks of 5 seeds", "",
+            f"The study ran 5 runs per case. Here the seeds are cut into consecutive blocks of "
+            f"{BLOCK_SIZE}, each scored on its own exactly as above (Tukey HSD, alignment: "
+            f"{UNWRAPPED}): how many of the study's findings one 5-run reproduction "
+            f"recovers, and how much that moves between blocks. (The verdicts above pool all "
+            f"{len(seeds)} seeds, so they have more power than the study had and call more "
+            f"of its null results significant.) `magnitudes_within_2x`: of the study's RQ1 "
+            f"and RQ2 means, how many ours are within a factor 2 of.", "",
+            _md_table(blocks), ""]
 
 
 def _comparison_section(table: pd.DataFrame, policies: list[str],

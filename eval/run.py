@@ -90,6 +90,8 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         env.close()
     say = (lambda *a: None) if quiet else print
     name = f"{policy} · preset {preset}" if params is not None else policy
+    if env.config.realism.active:
+        name += f" · realism {env.config.realism.realism}"
     say(f"policy {name} · robots {env.config.scenario.robots} · "
         f"leader {env.config.scenario.leader_speed} m/s · seed {seed} · "
         f"episode {result.wall_time:.2f} s wall")

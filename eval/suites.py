@@ -49,6 +49,8 @@ class Case:
 MAX_SEEDS = 10_000
 """Most seeds a suite may have (10,000 × the paper's 7 distinct cases is about 6 hours of
 episodes on 2 cores); more is refused before anything is allocated."""
+BLOCK_SIZE = 5
+"""Seeds in one block of ``boids eval --blocks``: the study's runs per case."""
 MAX_SEED = 2**32 - 1
 """Largest seed value (numpy's legacy seeding range, which every consumer accepts)."""
 
@@ -91,6 +93,23 @@ class Suite:
         for case in self.cases:
             out.setdefault(case.group, []).append(case)
         return out
+
+    def with_env(self, **env: Any) -> Suite:
+        """The suite with the env config fields ``env`` set in every case (over the case's
+        own), e.g. ``with_env(realism="ros")``; ``ValueError`` naming a bad field or value."""
+        if not env:
+            return self
+        EnvConfig().replace(**env)  # a bad name or value fails here, before any episode
+        return dataclasses.replace(self, cases=tuple(
+            dataclasses.replace(c, env={**c.env, **env}) for c in self.cases))
+
+    def with_blocks(self, blocks: int | None) -> Suite:
+        """The suite with ``blocks`` independent blocks of :data:`BLOCK_SIZE` seeds (seeds
+        0..5·blocks−1), scored block by block in the report as separate reproductions."""
+        if blocks is None:
+            return self
+        check_integer("blocks", blocks, 1, MAX_SEEDS // BLOCK_SIZE)
+        return self.with_seeds(BLOCK_SIZE * int(blocks))
 
     def with_seeds(self, seeds: int | Sequence[int] | None) -> Suite:
         """The suite with ``seeds`` (an int n means seeds 0..n-1, 1 <= n <=
