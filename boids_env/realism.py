@@ -44,8 +44,8 @@ OFF: dict[str, Any] = {"stall": False, "stall_margin": 0.0, "command_noise": 0.0
                        "command_latency": 0, "stale_observations": 0.0, "drop_commands": 0.0}
 PRESETS: dict[str, dict[str, Any]] = {
     "none": OFF,
-    "ros": {**OFF, "stall": True, "stall_margin": 0.1, "command_noise": 0.05,
-            "start_jitter": 1.5},
+    "ros": {**OFF, "stall": True, "stall_margin": 0.1, "timing_jitter": 0.2,
+            "jitter_leader": True, "start_jitter": 2.5},
 }
 """The fields each realism preset sets."""
 
