@@ -193,7 +193,7 @@ def _humble_metadata(folder: Path, name: str) -> None:
 
 
 def read_bag(path: str | Path, config: EnvConfig | None = None, *,
-             odometry_only: bool = False) -> Recording:
+             odometry_only: bool = False, answers: bool = False) -> Recording:
     """Reads a bag (ROS 1 file, or ROS 2 folder: MCAP or SQLite) with ``/robot_k/odom`` and
     ``/robot_k/cmd_vel`` topics into a Recording.
 
@@ -215,6 +215,10 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
             velocity (odometry twist) as its command, so ``V_align`` compares the robots'
             actual headings rather than their commands. Off by default: a bag without
             commands is an error rather than silently zero commands.
+        answers: the bag was recorded from a live graph, where each robot's k-th
+            ``cmd_vel`` answers its k-th odometry and so is the command of sample k+1:
+            commands move one sample later (sample 0, the reset state, gets zero), and a
+            robot may lack its last answer (T−1 or T commands for T samples).
     """
     path = Path(path)
     if not path.exists():
@@ -244,9 +248,9 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
         raise
     except Exception as exc:
         raise ValueError(f"cannot read ROS bag {path}: {exc}") from exc
-    robots = _check_topics(path, odom, cmd, odometry_only)
+    robots = _check_topics(path, odom, cmd, odometry_only, answers)
     o = np.array([odom[k] for k in robots], dtype=np.float64)  # (N, T, 5)
-    c = o[:, :, 3:5] if odometry_only else np.array([cmd[k] for k in robots], dtype=np.float64)
+    c = _commands(o, cmd, robots, odometry_only, answers)
     for name, values in (("odom", o), ("cmd_vel", c)):
         bad = sorted({int(k) for k in np.nonzero(~np.isfinite(values))[0]})
         if bad:
@@ -264,6 +268,19 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
 
     return Recording(base, (stamps - stamps[0]) / 1e9, samples(o[:, :, 1:3]),
                      samples(o[:, :, 3:5]), samples(c), leader_path=leader_path)
+
+
+def _commands(o: np.ndarray, cmd: dict[int, list], robots: list[int], odometry_only: bool,
+              answers: bool) -> np.ndarray:
+    """The commands (N, T, 2) per sample: the measured velocities (``odometry_only``), the
+    k-th command at sample k+1 (``answers``; zero at sample 0), or the k-th at sample k."""
+    if odometry_only:
+        return o[:, :, 3:5]
+    if answers:
+        c = np.zeros((len(robots), o.shape[1], 2))
+        c[:, 1:] = np.array([cmd[k][: o.shape[1] - 1] for k in robots], dtype=np.float64)
+        return c
+    return np.array([cmd[k] for k in robots], dtype=np.float64)
 
 
 def _robots(ks: list[int], limit: int = 10) -> str:
@@ -285,7 +302,7 @@ def _counts(counts: dict[int, int], limit: int = 10) -> str:
 
 
 def _check_topics(path: Path, odom: dict[int, list], cmd: dict[int, list],
-                  odometry_only: bool) -> list[int]:
+                  odometry_only: bool, answers: bool = False) -> list[int]:
     """The robots 0..N-1 of a bag whose topics align message by message; ``ValueError``
     naming the robots otherwise."""
     robots = sorted(odom)
@@ -315,10 +332,13 @@ def _check_topics(path: Path, odom: dict[int, list], cmd: dict[int, list],
         raise ValueError(f"{path}: cmd_vel and odom topics disagree: no cmd_vel for "
                          f"{_robots(lacking) or 'none'}; cmd_vel without odom for "
                          f"{_robots(stray) or 'none'}")
-    differ = {k: len(cmd[k]) for k in robots if len(cmd[k]) != counts[k]}
+    allowed = {counts[robots[0]] - 1, counts[robots[0]]} if answers else {counts[robots[0]]}
+    differ = {k: len(cmd[k]) for k in robots if len(cmd[k]) not in allowed}
     if differ:
+        need = (f"{counts[robots[0]] - 1} or {counts[robots[0]]}" if answers
+                else f"{counts[robots[0]]}")
         raise ValueError(f"{path}: each robot needs as many cmd_vel as odom messages "
-                         f"({counts[robots[0]]}); cmd_vel counts differ for "
+                         f"({need}); cmd_vel counts differ for "
                          + ", ".join(f"robot_{k}: {v}" for k, v in list(differ.items())[:10]))
     return robots
 

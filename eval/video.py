@@ -189,6 +189,4 @@ def _progress(stream: Iterator[Any], total: int, label: str, enabled: bool
         from tqdm import tqdm
     except ImportError:  # pragma: no cover - tqdm is in the eval extra
         return stream
-    # disable=None: no bar when stderr is not a terminal (a log file gets no bar updates)
-    return iter(tqdm(stream, total=total, desc=label, unit="frame", leave=False,
-                     disable=None))
+    return iter(tqdm(stream, total=total, desc=label, unit="frame", leave=False))

@@ -53,20 +53,22 @@ def read_live_bag(path: str | Path, config: EnvConfig | None = None) -> Recordin
     """
     from boids_env.rosbag import read_bag
 
-    recording = read_bag(path, config)
-    samples, robots = recording.positions.shape[:2]
     counts = topic_counts(path)
+    robots = sum(1 for t in counts if t.startswith("/robot_") and t.endswith("/odom"))
     odom = [counts.get(f"/robot_{k}/odom", 0) for k in range(robots)]
-    if len(set(odom)) != 1:
+    if len(set(odom)) > 1:
         raise ValueError(f"{path}: the robots' odometry counts differ ({odom}): the bag "
                          f"does not hold every tick of every robot")
+    samples = odom[0] if odom else 0
     short = {k: n for k in range(robots)
              if (n := counts.get(f"/robot_{k}/cmd_vel", 0)) < samples - 1}
     if short:
         raise ValueError(f"{path}: {len(short)} robot(s) have fewer than {samples - 1} "
                          f"commands (one per tick): {short}; record from before tick 0")
-    commanded = np.zeros_like(recording.commanded)
-    commanded[1:] = recording.commanded[:-1]
+    # each command answers an odometry sample: it is the next sample's command
+    recording = read_bag(path, config, answers=True)
+    samples = recording.positions.shape[0]
+    commanded = recording.commanded.copy()
     # what the robots executed: the followers' speed limited as the simulator limits it
     commanded[:, 1:] = clip_speed(commanded[:, 1:], recording.config.world.max_speed)
     time = np.arange(samples) * recording.config.world.dt

@@ -135,3 +135,17 @@ def test_non_finite_data_are_named(tmp_path):
     write_bag(rec, tmp_path / "nan.bag")
     with pytest.raises(ValueError, match=r"non-finite values in the odom messages of robot_1"):
         read_bag(tmp_path / "nan.bag")
+
+
+def test_answers_moves_each_command_one_sample_later_and_allows_the_last_missing(tmp_path):
+    # a live graph: robot 2's answer to the last odometry was never recorded
+    bag = custom_bag(tmp_path / "live.bag", {0: 12, 1: 12, 2: 12}, {0: 12, 1: 12, 2: 11})
+    rec = read_bag(bag, answers=True)
+    assert rec.commanded.shape == (12, 3, 2)
+    assert np.all(rec.commanded[0] == 0)  # the reset sample has no command yet
+    assert np.all(rec.commanded[1:, 2] == [0.25, -0.1])  # robot 2's commands, one later
+    with pytest.raises(ValueError, match=r"cmd_vel counts differ for robot_2: 11"):
+        read_bag(bag)  # aligned (written by write_bag): one command per sample
+    short = custom_bag(tmp_path / "short.bag", {0: 12, 1: 12}, {0: 12, 1: 10})
+    with pytest.raises(ValueError, match=r"\(11 or 12\); cmd_vel counts differ for robot_1: 10"):
+        read_bag(short, answers=True)

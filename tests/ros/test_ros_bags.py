@@ -91,11 +91,12 @@ def _copy_without(src, dst, topic: str, count: int) -> None:
     """``src`` without the first ``count`` messages of ``topic`` (a recorder that subscribed
     late)."""
     from rosbags.rosbag1 import Reader, Writer
-    from rosbags.typesys import Stores, get_typestore
 
-    store = get_typestore(Stores.ROS1_NOETIC)
     with Reader(src) as reader, Writer(dst) as writer:
-        conns = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=store)
+        # each connection's own message definition (tf2_msgs and others are not in every
+        # typestore)
+        conns = {c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data,
+                                             md5sum=c.digest)
                  for c in reader.connections}
         skipped = 0
         for conn, stamp, raw in reader.messages():
