@@ -240,3 +240,12 @@ def test_external_leader_follows_robot_0_cmd_vel_and_lone_followers_stay(ros):
     # no controller: every follower gets the zero command and stays where it started
     assert np.all(rec.commanded[:, 1:] == 0)
     assert np.allclose(rec.positions[-1, 1:], rec.positions[0, 1:])
+
+
+def test_lockstep_graph_with_ros_realism_reproduces_boids_run_with_it(ros):
+    out, _ = _run_lockstep(ros, "--max-cycles", "150", "--seed", "4", "--realism", "ros")
+    ours = Recording.from_parquet(out / "trajectory.parquet")
+    reference = _in_process(seed=4, max_cycles=150, realism="ros")
+    _assert_same_recording(ours, reference.recording, "realism ros graph vs boids run")
+    ideal = _in_process(seed=4, max_cycles=150)
+    assert not np.array_equal(ideal.recording.positions, ours.positions)  # realism acted
