@@ -186,7 +186,25 @@ ROBUSTNESS = Suite("robustness", tuple(
 """Future work of the study: other leader paths, initial placement spread, larger groups and
 sensing noise (Gaussian, std in m and m/s), 13 robots at 0.55 m/s otherwise."""
 
-SUITES = {"paper": PAPER, "robustness": ROBUSTNESS}
+GENERALISATION = Suite("generalisation", (
+    Case("default", "trained", "case", "default"),
+    Case("7 robots", "trained", "case", "7 robots", {"robots": 7}),
+    Case("19 robots", "trained", "case", "19 robots", {"robots": 19}),
+    Case("leader 0.5", "trained", "case", "leader 0.5", {"leader_speed": 0.5}),
+    Case("leader 0.6", "trained", "case", "leader 0.6", {"leader_speed": 0.6}),
+    Case("waypoint square", "unseen", "case", "waypoint square",
+         {"path": "waypoints", "waypoints": ((3.0, 3.0), (-3.0, 3.0), (-3.0, -3.0),
+                                             (3.0, -3.0), (3.0, 3.0))}),
+    Case("43 robots", "unseen", "case", "43 robots", {"robots": 43}),
+    Case("leader 0.7", "unseen", "case", "leader 0.7", {"leader_speed": 0.7}),
+    Case("figure-eight 3 m", "unseen", "case", "figure-eight 3 m",
+         {"robots": 10, "path": "figure_eight", "path_size": 3.0}),
+    Case("leader 0.4", "unseen", "case", "leader 0.4", {"leader_speed": 0.4})))
+"""The shipped learned policy's bar: five cases its recipe trains on (``trained``) and five it
+does not (``unseen``: a path, a group size, speeds and a path size outside the recipe, picked
+before training), 13 robots at 0.55 m/s on the study's square otherwise."""
+
+SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION}
 
 
 def load_suite(spec: str | Path) -> Suite:

@@ -4,7 +4,7 @@ import pytest
 
 from boids_env.config import reynolds_params
 from boids_env.environment import BoidsEnv
-from boids_env.eval.suites import PAPER, ROBUSTNESS, load_suite
+from boids_env.eval.suites import GENERALISATION, PAPER, ROBUSTNESS, load_suite
 
 
 def test_paper_suite_is_table_iii():
@@ -25,7 +25,28 @@ def test_robustness_suite_covers_future_work():
     assert max(c.env["robots"] for c in ROBUSTNESS.cases) == 61
 
 
-@pytest.mark.parametrize("suite", [PAPER, ROBUSTNESS], ids=["paper", "robustness"])
+def test_generalisation_suite_unseen_cases_lie_outside_the_shipped_recipe():
+    from boids_env.config import EnvConfig
+    from boids_env.train.config import TrainConfig, resolve_recipe
+
+    recipe = TrainConfig.from_toml(resolve_recipe("ppo_safe"))
+    default_size = EnvConfig().scenario.path_size
+
+    def trained_on(env):
+        return (env.get("robots", 13) in recipe.group_sizes
+                and min(recipe.leader_speeds) <= env.get("leader_speed", 0.55)
+                <= max(recipe.leader_speeds)
+                and env.get("path", "square") in recipe.paths
+                and env.get("path_size", default_size) == default_size)
+
+    groups = GENERALISATION.groups
+    assert len(groups["trained"]) == len(groups["unseen"]) == 5
+    assert all(trained_on(c.env) for c in groups["trained"])
+    assert not any(trained_on(c.env) for c in groups["unseen"])
+
+
+@pytest.mark.parametrize("suite", [PAPER, ROBUSTNESS, GENERALISATION],
+                         ids=["paper", "robustness", "generalisation"])
 def test_every_built_in_case_is_a_valid_configuration(suite):
     for case in suite.cases:
         env = BoidsEnv(**case.env)  # validates, and checks the layout and path fit
