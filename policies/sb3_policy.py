@@ -131,8 +131,9 @@ class SB3Policy(BatchPolicy):
                 f"the model expects observations of size {self.obs_size}, got shape "
                 f"{obs.shape}; make the env with the model's env_fields {self.env_fields}")
         policy = self.model.policy
-        policy.set_training_mode(False)
-        with torch.no_grad():
+        if policy.training:  # set_training_mode walks every submodule: 15 % of an episode
+            policy.set_training_mode(False)
+        with torch.inference_mode():
             tensor = torch.as_tensor(obs, device=policy.device)
             if _gaussian_actor_critic(policy):
                 # The deterministic action of a Gaussian actor-critic is the mean, the
