@@ -342,7 +342,9 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
         for err in errors:
             print(f"episode failed: {err['policy']} · {err['case']} · seed {err['seed']}: "
                   f"{err['error']}", file=sys.stderr)
-        table = results_table(tasks, done, suite)
+        # what episodes.jsonl holds, re-read: a Ctrl-C landing between a row's append and
+        # its entry in ``done`` must not leave the table one row short of the file
+        table = results_table(tasks, {**done, **_finished(out, tasks)}, suite)
         _write_results(out, table, suite, policies)
     return table
 

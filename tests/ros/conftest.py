@@ -93,7 +93,24 @@ class Process:
             except subprocess.TimeoutExpired:
                 self._signal_group(signal.SIGKILL)
                 self.popen.wait(timeout=timeout)
+            # rosbag's Python wrapper exits at once; its recorder child still closes and
+            # renames the bag (run.bag.active -> run.bag): let the group finish first
+            deadline = time.monotonic() + timeout
+            while self._group_alive() and time.monotonic() < deadline:
+                time.sleep(0.05)
         self._signal_group(signal.SIGKILL)  # a child left behind by the process
+
+    def _group_alive(self) -> bool:
+        """Whether a process of the group is still running (zombies, which an exited
+        parent leaves to init, do not count)."""
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                fields = stat.read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[2]) == self.popen.pid and fields[0] != "Z":
+                return True
+        return False
 
     def _signal_group(self, sig: int) -> None:
         try:
