@@ -42,6 +42,23 @@ def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
     return tuple(points)
 
 
+def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) -> None:
+    """The env-config flags :func:`_env_fields` reads (``boids run``, ``boids ros sim``)."""
+    p.add_argument("--robots", type=int, default=13, help="group size, leader included (13)")
+    p.add_argument("--leader-speed", type=float, default=0.55, help="m/s (0.55)")
+    p.add_argument("--path", choices=PATHS, default="square", help=path_help)
+    p.add_argument("--waypoints", type=parse_waypoints, default=None,
+                   help='targets for --path waypoints, "x,y x,y ..." in metres')
+    p.add_argument("--seed", type=int, default=0, help=seed_help)
+    p.add_argument("--max-cycles", type=int, default=None, help="hard step limit")
+    p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
+    p.add_argument("--realism", choices=REALISMS, default=None,
+                   help="ROS/Stage realism: none (the ideal world, default) or ros (stall, "
+                   "timing jitter, staggered start; see the README)")
+    p.add_argument("--no-wrap", action="store_true",
+                   help="the study's unwrapped alignment angle rule")
+
+
 def _run_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="run one episode of a policy, print its metrics, save files",
                        description="Run one episode: prints V_sep / V_coh / V_align and the "
@@ -50,23 +67,11 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
                        "video with --video, ROS bags with --bag / --mcap). --out must be "
                        "empty or new unless --overwrite.")
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
-    p.add_argument("--robots", type=int, default=13, help="group size, leader included (13)")
-    p.add_argument("--leader-speed", type=float, default=0.55, help="m/s (0.55)")
+    _add_env_args(p, "leader path (square)", "seed (0)")
     p.add_argument("--leader-weight", type=float, default=None,
                    help="Reynolds leader weight (preset's: 1.0)")
-    p.add_argument("--path", choices=PATHS, default="square", help="leader path (square)")
-    p.add_argument("--waypoints", type=parse_waypoints, default=None,
-                   help='targets for --path waypoints, "x,y x,y ..." in metres')
     p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
                    help="Reynolds parameters (paper)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--max-cycles", type=int, default=None, help="hard step limit")
-    p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
-    p.add_argument("--realism", choices=REALISMS, default=None,
-                   help="ROS/Stage realism: none (the ideal world, default) or ros (stall, "
-                   "timing jitter, staggered start; see the README)")
-    p.add_argument("--no-wrap", action="store_true",
-                   help="the study's unwrapped alignment angle rule")
     p.add_argument("--out", default="runs/latest", help="output folder (runs/latest)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace what an earlier boids run wrote in --out (listed in its "
@@ -297,20 +302,8 @@ def _ros_sim_parser(sub: argparse._SubParsersAction) -> None:
                        "/robot_k/cmd_vel. Ends with the episode (--episodes N for more), "
                        "prints the study's metrics, writes metrics.json, "
                        "trajectory.parquet and config.json with --out.")
-    p.add_argument("--robots", type=int, default=13, help="group size, leader included (13)")
-    p.add_argument("--leader-speed", type=float, default=0.55, help="m/s (0.55)")
-    p.add_argument("--path", choices=PATHS, default="square",
-                   help="leader path (square); external: driven by /robot_0/cmd_vel")
-    p.add_argument("--waypoints", type=parse_waypoints, default=None,
-                   help='targets for --path waypoints, "x,y x,y ..." in metres')
-    p.add_argument("--seed", type=int, default=0, help="seed of the first episode (0)")
-    p.add_argument("--max-cycles", type=int, default=None, help="hard step limit")
-    p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
-    p.add_argument("--realism", choices=REALISMS, default=None,
-                   help="ROS/Stage realism: none (the ideal world, default) or ros (stall, "
-                   "timing jitter, staggered start; see the README)")
-    p.add_argument("--no-wrap", action="store_true",
-                   help="the study's unwrapped alignment angle rule")
+    _add_env_args(p, "leader path (square); external: driven by /robot_0/cmd_vel",
+                  "seed of the first episode (0)")
     p.add_argument("--episodes", type=int, default=1, help="episodes to run (1)")
     p.add_argument("--lockstep", action="store_true",
                    help="advance a tick only when every follower answered it "

@@ -344,7 +344,8 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
                   f"{err['error']}", file=sys.stderr)
         # what episodes.jsonl holds, re-read: a Ctrl-C landing between a row's append and
         # its entry in ``done`` must not leave the table one row short of the file
-        table = results_table(tasks, {**done, **_finished(out, tasks)}, suite)
+        missing = [t for t in tasks if t.key not in done]
+        table = results_table(tasks, {**done, **_finished(out, missing)}, suite)
         _write_results(out, table, suite, policies)
     return table
 

@@ -173,14 +173,16 @@ class _NoOptimizer:
 def _acting_only(path: Path) -> dict[str, Any]:
     """``custom_objects`` for SB3's ``load`` that build the policy without an optimizer
     (the saved policy keyword arguments, the optimizer class replaced)."""
-    from stable_baselines3.common.save_util import load_from_zip_file
+    import zipfile
 
-    try:
-        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu",
-                                        print_system_info=False)
+    from stable_baselines3.common.save_util import json_to_data
+
+    try:  # only the zip's "data" entry: the weights are read once, by SB3's load
+        with zipfile.ZipFile(path) as archive:
+            data = json_to_data(archive.read("data").decode())
     except Exception:  # unreadable: SB3's own load reports it
         return {}
-    kwargs = (data or {}).get("policy_kwargs")
+    kwargs = data.get("policy_kwargs") if isinstance(data, dict) else None
     if not isinstance(kwargs, dict):
         return {}
     return {"policy_kwargs": {**kwargs, "optimizer_class": _NoOptimizer}}
