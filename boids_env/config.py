@@ -192,6 +192,13 @@ class ObservationConfig:
     """Frame of observations and actions, one of FRAMES: ``world`` (the study's) or
     ``leader`` (x along the leader's heading, y to its left; opt-in, for policies that should
     learn a formation relative to the leader)."""
+    relative_actions: bool = False
+    """Read each follower's action as a velocity relative to the leader's velocity as that
+    follower observes it (noise included): the command is the observed leader velocity plus
+    the action, in ``frame``, and the action space widens to ±2·``max_speed`` so that any
+    command stays reachable. Opt-in, for learned policies (a zero action matches the leader's
+    speed on any path and at any speed); a policy that outputs absolute velocities, like the
+    Reynolds controller, needs it off."""
 
     def __post_init__(self) -> None:
         _set(self, "horizon", _number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
@@ -200,6 +207,7 @@ class ObservationConfig:
                                              lo_open=True, unit="m/s"))
         _set(self, "obs_noise", _number("obs_noise", self.obs_noise, 0.0, 10.0, unit="m, m/s"))
         _set(self, "sense_walls", _flag("sense_walls", self.sense_walls))
+        _set(self, "relative_actions", _flag("relative_actions", self.relative_actions))
         if self.frame not in FRAMES:
             raise ValueError(f"frame must be one of {FRAMES}, got {self.frame!r}")
 

@@ -59,7 +59,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     ## Action Space
     Per follower ``Box(-max_speed, max_speed, (2,), float32)``: the commanded velocity (vx, vy)
     in m/s, world frame. The speed (the vector's norm) is clipped to ``max_speed`` (0.5 m/s);
-    the robot tracks the command with a force of at most ``drive_force`` (1 N).
+    the robot tracks the command with a force of at most ``drive_force`` (1 N). With the
+    opt-in ``relative_actions`` the action is relative to the leader velocity the follower
+    observes, within ±2·max_speed; with ``frame="leader"`` it is in the leader's frame.
 
     ## Observation Space
     Per follower ``Box`` of size 6 + 5·K, float32 (see :mod:`boids_env.observations`):
@@ -125,7 +127,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self.observation_spaces = {
             a: self.layout.space(world.arena_half_size, obs_cfg.horizon, obs_cfg.velocity_bound)
             for a in self.possible_agents}
-        self.action_spaces = {a: spaces.Box(-world.max_speed, world.max_speed, (2,), np.float32)
+        bound = world.max_speed * (2.0 if obs_cfg.relative_actions else 1.0)
+        self.action_spaces = {a: spaces.Box(-bound, bound, (2,), np.float32)
                               for a in self.possible_agents}
         h, vb = world.arena_half_size, obs_cfg.velocity_bound
         self.state_space = spaces.Box(

@@ -262,6 +262,7 @@ class Observer:
         self.space = self.layout.space(world.arena_half_size, obs.horizon, obs.velocity_bound)
         self.heading = INITIAL_HEADING
         self._rng: np.random.Generator | None = None
+        self._leader_velocity: npt.NDArray[np.float64] | None = None
 
     def reset(self, rng: np.random.Generator | None = None,
               heading: float = INITIAL_HEADING) -> None:
@@ -269,6 +270,7 @@ class Observer:
         frame's until the leader moves (where the leader faces: its path's first move)."""
         self.heading = float(heading)
         self._rng = rng
+        self._leader_velocity = None
 
     @property
     def frame(self) -> npt.NDArray[np.float64] | None:
@@ -276,7 +278,14 @@ class Observer:
         return rotation(self.heading) if self.config.observation.frame == "leader" else None
 
     def to_world(self, actions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """Actions (F, 2) in the observation frame of the last call, in the world frame."""
+        """Actions (F, 2) in the observation frame of the last call, in the world frame; with
+        ``relative_actions`` each is first added to the leader velocity its follower observed
+        in that call."""
+        if self.config.observation.relative_actions:
+            if self._leader_velocity is None or len(self._leader_velocity) != len(actions):
+                raise RuntimeError("relative_actions: observe the followers before turning "
+                                   "their actions into commands")
+            actions = actions + self._leader_velocity
         frame = self.frame
         return actions if frame is None else actions @ frame.T
 
@@ -307,4 +316,6 @@ class Observer:
             obs = obs + noise
         if cfg.obs_noise > 0 or cfg.frame != "world":
             obs = np.clip(obs, self.space.low, self.space.high).astype(np.float32)
+        if cfg.relative_actions:
+            self._leader_velocity = obs[:, self.layout.leader_velocity].astype(np.float64)
         return obs

@@ -66,11 +66,11 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         if not Path(spec).is_file():
             raise FileNotFoundError(f"policy model file not found: {spec}")
         try:
-            from boids_env.policies.sb3_policy import SB3Policy
+            from boids_env.policies.sb3_policy import load_model_policy
         except ImportError as exc:
             raise ImportError("loading an SB3 model needs: pip install 'boids-env[train]'"
                               ) from exc
-        return SB3Policy.load(spec)
+        return load_model_policy(spec)
     if ":" in spec:
         obj = _import_object(spec)
         # A class passes isinstance(.., Policy) (its methods are attributes), so classes and

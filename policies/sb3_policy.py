@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from boids_env.files import atomic_path
 from boids_env.policies.base import BatchPolicy
+from boids_env.policies.mlp_actor import ACTOR_ENTRY, MLPActor
 
 META_ENTRY = "boids.json"
 ALGORITHMS = ("ppo", "sac", "td3", "a2c", "ddpg")
@@ -54,8 +55,11 @@ def read_meta(path: str | Path) -> dict[str, Any]:
     return meta
 
 
-def write_meta(path: str | Path, meta: dict[str, Any]) -> None:
-    """Adds (or replaces) the ``boids.json`` entry of a model zip saved by SB3.
+def write_meta(path: str | Path, meta: dict[str, Any], model: Any = None) -> None:
+    """Adds (or replaces) the ``boids.json`` entry of a model zip saved by SB3, and with
+    ``model`` (the SB3 model just saved there) its actor for acting without torch
+    (``boids_actor.npz``, see :mod:`boids_env.policies.mlp_actor`) when it is an MLP that
+    numpy can run; a model that is not drops a stale one.
 
     The new zip is written beside the model and renamed over it when complete, so the model
     is never truncated: a full disk or an interrupt leaves the previous file as it was.
@@ -65,16 +69,73 @@ def write_meta(path: str | Path, meta: dict[str, Any]) -> None:
         text = json.dumps(meta, indent=2)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"model metadata must be JSON-serialisable: {exc}") from None
+    replaced = {META_ENTRY, ACTOR_ENTRY} if model is not None else {META_ENTRY}
+    actor = actor_of(model) if model is not None else None
     try:
         with zipfile.ZipFile(path) as zf:
             entries = [(info, zf.read(info.filename)) for info in zf.infolist()
-                       if info.filename != META_ENTRY]
+                       if info.filename not in replaced]
     except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError) as exc:
         raise ValueError(f"cannot add metadata to SB3 model {path}: {exc}") from exc
     with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
         for info, data in entries:
             zf.writestr(info, data)
         zf.writestr(META_ENTRY, text)
+        if actor is not None:
+            zf.writestr(ACTOR_ENTRY, actor.to_bytes())
+
+
+def actor_of(model: Any) -> MLPActor | None:
+    """The deterministic actor of an SB3 model as an :class:`MLPActor` (numpy), or None when
+    it is not a Gaussian MLP actor-critic with a flattening feature extractor and tanh or ReLU
+    activations (acting from such a model goes through torch)."""
+    from stable_baselines3.common.distributions import DiagGaussianDistribution
+    from stable_baselines3.common.policies import ActorCriticPolicy
+    from stable_baselines3.common.torch_layers import FlattenExtractor
+    from torch import nn
+
+    policy = getattr(model, "policy", None)
+    if not (isinstance(policy, ActorCriticPolicy) and not policy.squash_output
+            and isinstance(policy.action_dist, DiagGaussianDistribution)
+            and isinstance(policy.pi_features_extractor, FlattenExtractor)
+            and len(policy.observation_space.shape or ()) == 1):
+        return None
+    layers, names = [], {nn.Tanh: "tanh", nn.ReLU: "relu"}
+    activation = None
+    for module in policy.mlp_extractor.policy_net:
+        if isinstance(module, nn.Linear):
+            layers.append(module)
+        elif type(module) in names and activation in (None, names[type(module)]):
+            activation = names[type(module)]
+        else:
+            return None
+    layers.append(policy.action_net)
+    if not isinstance(policy.action_net, nn.Linear):
+        return None
+    space = model.action_space
+    return MLPActor([m.weight.detach().cpu().numpy() for m in layers],
+                    [m.bias.detach().cpu().numpy() for m in layers], activation or "tanh",
+                    space.low, space.high)
+
+
+def load_model_policy(path: str | Path, device: str = "cpu") -> BatchPolicy:
+    """The policy of a model zip: its stored numpy actor when it has one (acting on the CPU
+    without importing torch), else :meth:`SB3Policy.load` (also for ``device`` other than
+    ``cpu``)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"policy model file not found: {path}")
+    meta = read_meta(path)
+    if device == "cpu":
+        with zipfile.ZipFile(path) as zf:
+            raw = zf.read(ACTOR_ENTRY) if ACTOR_ENTRY in zf.namelist() else None
+        if raw is not None:
+            env_fields = _env_fields(path, meta.get("env_fields"))
+            try:
+                return MLPActor.from_bytes(raw, env_fields, name=path.stem)
+            except ValueError as exc:
+                raise ValueError(f"SB3 model {path}: {exc}") from None
+    return SB3Policy.load(path, device=device)
 
 
 class SB3Policy(BatchPolicy):

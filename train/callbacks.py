@@ -113,5 +113,5 @@ class Checkpoints(CheckpointCallback):
         due = self.n_calls % self.save_freq == 0
         result = super()._on_step()
         if due:
-            write_meta(self._checkpoint_path(extension="zip"), self.meta)
+            write_meta(self._checkpoint_path(extension="zip"), self.meta, self.model)
         return result

@@ -114,7 +114,7 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
 
         def save(path: Path) -> None:
             model.save(path)
-            write_meta(path, meta)
+            write_meta(path, meta, model)
 
         evaluator = FlockEvalCallback(out, config.eval_every, config.eval_seeds,
                                       config.env_fields, save_best=save)

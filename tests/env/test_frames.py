@@ -119,3 +119,41 @@ def test_a_fast_leader_with_a_small_margin_still_finishes_its_path():
         steps += 1
     assert env.leader.finished, "the leader overshot its targets forever"
     assert steps < 400, steps
+
+
+def test_relative_actions_add_the_observed_leader_velocity():
+    # the leader's first leg runs +y at 0.55 m/s; a zero action commands what each follower
+    # observes of it, a non-zero one is added to that (then the speed limit applies)
+    env = parallel_env(robots=4, relative_actions=True, startup_time=0.0, max_cycles=30)
+    obs, _ = env.reset(seed=0)
+    assert env.action_space("follower_1").high[0] == pytest.approx(1.0)  # 2 × max_speed
+    for _ in range(10):
+        obs, *_ = env.step({a: np.zeros(2) for a in env.agents})
+    seen = np.array([obs[a][env.layout.leader_velocity] for a in env.agents], dtype=np.float64)
+    assert np.linalg.norm(seen, axis=1).min() > 0.4, "the leader is moving"
+    offset = np.array([-0.2, 0.1])
+    env.step({a: offset for a in env.agents})
+    want = seen + offset
+    speed = np.linalg.norm(want, axis=1, keepdims=True)
+    want = want * np.minimum(1.0, 0.5 / speed)  # max_speed 0.5 in the world frame
+    np.testing.assert_allclose(env.snapshot().commanded[1:], want, atol=1e-12)
+
+
+def test_relative_actions_in_the_leader_frame_turn_with_the_scene():
+    turn = _turn(30.0)
+    fields = dict(robots=7, path_size=1.47, init_jitter=0.0, frame="leader",
+                  relative_actions=True, max_cycles=60)
+    plain, turned = parallel_env(**fields), parallel_env(**fields, path_rotation=30.0)
+    obs_p, _ = plain.reset(seed=0)
+    obs_t, _ = turned.reset(seed=0)
+    policy = LinearPolicy(plain.layout.size, seed=1)
+    for _ in range(60):
+        obs_p, *_ = plain.step({a: policy(obs_p[a]) for a in plain.agents})
+        obs_t, *_ = turned.step({a: policy(obs_t[a]) for a in turned.agents})
+        np.testing.assert_allclose(turned.snapshot().commanded,
+                                   plain.snapshot().commanded @ turn.T, atol=1e-4)
+
+
+def test_relative_actions_is_a_flag():
+    with pytest.raises(ValueError, match="relative_actions"):
+        EnvConfig.from_kwargs(relative_actions="yes")

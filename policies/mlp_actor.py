@@ -1,0 +1,98 @@
+"""A trained MLP actor's deterministic actions in numpy: acting without importing torch.
+
+``boids train`` stores the actor of every Gaussian MLP policy it saves (SB3's PPO/A2C
+``MlpPolicy``: the policy network's linear layers and activations, then the action head) as
+an extra ``boids_actor.npz`` entry in the model zip. Acting from it needs only numpy: loading
+torch and Stable-Baselines3 costs about 1.5 s, four times a whole 13-robot episode. The actions
+equal torch's forward pass up to float32 rounding (the matrix products run in another
+library), so trajectories agree with those of the torch model for a while and then drift.
+"""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from boids_env.policies.base import BatchPolicy
+
+ACTOR_ENTRY = "boids_actor.npz"
+ACTIVATIONS = {"tanh": np.tanh, "relu": lambda x: np.maximum(x, 0.0, dtype=np.float32)}
+
+
+class MLPActor(BatchPolicy):
+    """Deterministic actions ``clip(head(act(... act(W0 x + b0) ...)), low, high)``.
+
+    Args:
+        weights: the layers' matrices (out, in), first to last, the action head last.
+        biases: their bias vectors.
+        activation: a name in :data:`ACTIVATIONS`, applied after every layer but the head.
+        low, high: the action space's bounds (per component).
+        env_fields: the env config fields the observations need (from the model's metadata).
+    """
+
+    def __init__(self, weights: list[npt.NDArray[np.float32]],
+                 biases: list[npt.NDArray[np.float32]], activation: str,
+                 low: npt.ArrayLike, high: npt.ArrayLike,
+                 env_fields: dict[str, Any] | None = None, name: str = "mlp") -> None:
+        if activation not in ACTIVATIONS:
+            raise ValueError(f"activation must be one of {sorted(ACTIVATIONS)}, got "
+                             f"{activation!r}")
+        if not weights or len(weights) != len(biases):
+            raise ValueError("an MLP actor needs one layer or more, one bias per weight matrix")
+        for k, (w, b) in enumerate(zip(weights, biases, strict=True)):
+            chained = k == 0 or w.shape[1:] == weights[k - 1].shape[:1]
+            if w.ndim != 2 or b.shape != (w.shape[0],) or not chained:
+                raise ValueError(f"layer {k}: weight {w.shape} and bias {b.shape} do not chain")
+        # stored transposed: x @ W.T is the torch Linear's x W^T + b
+        self.weights = [np.ascontiguousarray(w.T, dtype=np.float32) for w in weights]
+        self.biases = [np.asarray(b, dtype=np.float32) for b in biases]
+        self.activation = activation
+        self.low = np.asarray(low, dtype=np.float32)
+        self.high = np.asarray(high, dtype=np.float32)
+        self.env_fields = dict(env_fields or {})
+        self.name = name
+        self.obs_size = int(weights[0].shape[1])
+
+    def act_batch(self, obs: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
+        """Actions (F, 2) of all followers' observations (F, D) in one pass."""
+        x = np.asarray(obs, dtype=np.float32)
+        if x.ndim != 2 or x.shape[1] != self.obs_size:
+            raise ValueError(
+                f"the model expects observations of size {self.obs_size}, got shape "
+                f"{x.shape}; make the env with the model's env_fields {self.env_fields}")
+        act = ACTIVATIONS[self.activation]
+        for w, b in zip(self.weights[:-1], self.biases[:-1], strict=True):
+            x = act(x @ w + b)
+        out = (x @ self.weights[-1] + self.biases[-1]).reshape(-1, 2)
+        return np.clip(out, self.low, self.high).astype(np.float32)
+
+    def to_bytes(self) -> bytes:
+        """The ``boids_actor.npz`` entry: this actor's arrays (read back by
+        :meth:`from_bytes`)."""
+        arrays: dict[str, Any] = {"activation": np.array(self.activation),
+                                  "low": self.low, "high": self.high}
+        for k, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            arrays[f"w{k}"], arrays[f"b{k}"] = w.T, b
+        buffer = io.BytesIO()
+        np.savez(buffer, **arrays)
+        return buffer.getvalue()
+
+    @classmethod
+    def from_bytes(cls, raw: bytes, env_fields: dict[str, Any] | None = None,
+                   name: str = "mlp") -> MLPActor:
+        """The actor stored by :meth:`to_bytes`; ``ValueError`` for anything else."""
+        try:
+            with np.load(io.BytesIO(raw), allow_pickle=False) as data:
+                arrays = {key: data[key] for key in data.files}
+            layers = sum(1 for key in arrays if key.startswith("w"))
+            weights = [arrays[f"w{k}"] for k in range(layers)]
+            biases = [arrays[f"b{k}"] for k in range(layers)]
+            activation = str(arrays["activation"])
+            low, high = arrays["low"], arrays["high"]
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+            raise ValueError(f"not a stored MLP actor ({ACTOR_ENTRY}): {exc}") from None
+        return cls(weights, biases, activation, low, high, env_fields, name)
