@@ -195,6 +195,9 @@ def _slow_rows(out: dict[str, Any], training_only: bool) -> None:
             out["episode_seconds"] = costs = training.episode_costs()
             print(f"one default episode: Reynolds {costs['reynolds']:.3f} s, learned "
                   f"{costs['learned']:.3f} s ({costs['learned_over_reynolds']:.2f}×)")
+            out["command_seconds"] = whole = training.command_costs()
+            print(f"whole boids run command: Reynolds {whole['reynolds']:.2f} s, learned "
+                  f"{whole['learned']:.2f} s ({whole['learned_over_reynolds']:.2f}×)")
     if not training_only:
         suite = training.paper_suite_seconds()
         out["paper_suite_seconds"] = suite

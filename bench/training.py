@@ -118,6 +118,29 @@ def episode_costs(seeds: int = 3) -> dict[str, float]:
     return out
 
 
+def command_costs(repeats: int = 3) -> dict[str, float]:
+    """Wall seconds of the whole ``boids run`` command (best of ``repeats``, each a fresh
+    process: imports, model load, the episode and its files) for the Reynolds policy and the
+    shipped learned policy."""
+    import subprocess
+    import sys
+    import tempfile
+
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for spec in ("reynolds", "learned"):
+            times = []
+            for _ in range(repeats):
+                start = time.perf_counter()
+                subprocess.run([sys.executable, "-m", "boids_env.train.cli", "run", "--policy",
+                                spec, "--out", f"{tmp}/{spec}", "--overwrite"],
+                               check=True, capture_output=True, timeout=600)
+                times.append(time.perf_counter() - start)
+            out[spec] = min(times)
+    out["learned_over_reynolds"] = out["learned"] / out["reynolds"]
+    return out
+
+
 def paper_suite_seconds(workers: int | None = None) -> dict[str, float] | None:
     """Wall seconds of ``boids eval --suite paper`` for the Reynolds policy from scratch in a
     temporary folder, split into the episodes and the report (None without the eval extra)."""
