@@ -5,7 +5,8 @@
 - :func:`follower_bars`: the study's group-size figure, per-follower bars (followers 1–6) per
   group size, the study's beside ours;
 - :func:`trajectories`: one episode's paths in the arena, the leader's scripted path dashed;
-- :func:`policy_bars` and :func:`safety_bars`: policies side by side per case.
+- :func:`policy_bars` and :func:`safety_bars`: policies side by side per case;
+- :func:`learning_curves`: training runs' periodic evaluations against timesteps.
 
 Every bar is a mean with its 95 % percentile-bootstrap confidence interval
 (:func:`~boids_env.eval.stats.bootstrap_ci`), which never goes below zero for the
@@ -270,3 +271,41 @@ def _factor_label(factor: str) -> str:
 def _level_label(factor: str, level: str) -> str:
     return {"leader_speed": f"{level} m/s", "robots": f"{level} robots",
             "leader_weight": f"weight {level}"}.get(factor, f"{factor} {level}")
+
+
+CURVE_METRICS = ("total", "touching_fraction", "wall_fraction")
+"""The panels of :func:`learning_curves`: the study's total, then the safety figures."""
+
+
+def learning_curves(runs: Mapping[str, pd.DataFrame], path: Path,
+                    reference: Mapping[str, float] | None = None,
+                    title: str = "learning curves") -> Path:
+    """One panel per metric of :data:`CURVE_METRICS` (those every run's table has), one line
+    per run: its periodic evaluations (``evaluations.csv`` of ``boids train``: a
+    ``timesteps`` column and the metrics) against follower-steps. ``reference`` draws a
+    dashed horizontal line per metric (e.g. the Reynolds controller's value)."""
+    metrics = [m for m in CURVE_METRICS if all(m in t for t in runs.values())]
+    if not runs or not metrics:
+        raise ValueError(f"learning curves need runs whose evaluations hold timesteps and "
+                         f"one of {list(CURVE_METRICS)}")
+    fig, axes = plt.subplots(1, len(metrics), figsize=(4.2 * len(metrics), 3.2), squeeze=False)
+    for ax, metric in zip(axes[0], metrics, strict=True):
+        top = 0.0
+        for k, (label, table) in enumerate(runs.items()):
+            ax.plot(table["timesteps"] / 1e6, table[metric], color=COLORS[k % len(COLORS)],
+                    label=label, linewidth=1.4, marker="o", markersize=2.5)
+            top = max(top, float(table[metric].max()))
+        if reference and metric in reference:
+            ax.axhline(reference[metric], color="0.3", linestyle="--", linewidth=1)
+            ax.annotate(f"Reynolds {reference[metric]:.3g}", (0.98, reference[metric]),
+                        xycoords=("axes fraction", "data"), ha="right", va="bottom",
+                        fontsize=8, color="0.3")
+            top = max(top, reference[metric])
+        ax.set_title(metric_name(metric))
+        ax.set_xlabel("follower-steps (millions)")
+        ax.set_ylabel(UNITS.get(metric, metric))
+        ax.set_ylim(0, top * 1.1 if top > 0 else 1)
+    axes[0][0].legend(frameon=False, fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save(fig, path)

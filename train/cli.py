@@ -68,12 +68,56 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _curves_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("curves", help="learning curves of training runs (eval extra)",
+                       description="Plots the periodic evaluations (evaluations.csv) of one "
+                       "or more boids train output folders against follower-steps: the "
+                       "study's total and the safety figures, one line per run; writes a PNG "
+                       "and an SVG beside it.")
+    p.add_argument("runs", nargs="+", help="boids train output folders (or evaluations.csv "
+                   "files); label one with LABEL=PATH")
+    p.add_argument("--out", default="curves.png", help="figure file (curves.png)")
+    p.add_argument("--reference", type=float, default=None,
+                   help="a total to draw as a dashed line (e.g. Reynolds' on the default "
+                   "case)")
+    p.add_argument("--title", default="learning curves")
+    p.set_defaults(func=_cmd_curves)
+
+
+def _cmd_curves(args: argparse.Namespace) -> int:
+    require("eval", purpose="boids curves")
+    import pandas as pd
+
+    from boids_env.eval.figures import learning_curves
+
+    runs = {}
+    for spec in args.runs:
+        label, eq, where = spec.partition("=")
+        path = Path(where if eq else spec)
+        csv = path / "evaluations.csv" if path.is_dir() else path
+        if not csv.is_file():
+            raise FileNotFoundError(f"no evaluations.csv in {path} (a boids train output "
+                                    f"folder with --eval-every > 0)")
+        try:
+            table = pd.read_csv(csv)
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise ValueError(f"cannot read {csv}: {exc}") from None
+        if "timesteps" not in table or table.empty:
+            raise ValueError(f"{csv} is not a boids train evaluations.csv (no timesteps rows)")
+        runs[label if eq else str(path)] = table
+    reference = {"total": args.reference} if args.reference is not None else None
+    out = learning_curves(runs, Path(args.out), reference, title=args.title)
+    print(f"wrote {out} and {out.with_suffix('.svg')}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="boids", description="boids-env: leader-following "
                                      "boids flock (Akgun's ROS study) as a PettingZoo env")
     sub = parser.add_subparsers(dest="command", required=True)
     eval_cli.add_commands(sub)
     _train_parser(sub)
+    _curves_parser(sub)
     return parser
 
 
