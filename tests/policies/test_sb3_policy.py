@@ -117,3 +117,18 @@ def test_loading_to_act_builds_no_optimizer():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, timeout=300).stdout.split()
     assert out == ["False", "_NoOptimizer"]
+
+
+def test_the_learned_policy_is_deterministic_per_seed():
+    from boids_env import BoidsEnv
+    from boids_env.eval.episode import env_fields_for, run_episode
+
+    runs = []
+    for _ in range(2):
+        policy = load_policy("learned")  # a fresh load each time
+        env = BoidsEnv(**env_fields_for(policy, {"max_cycles": 150, "obs_noise": 0.02}))
+        runs.append(run_episode(env, policy, seed=5))
+    a, b = (r.recording for r in runs)
+    assert np.array_equal(a.positions, b.positions) and np.array_equal(a.commanded, b.commanded)
+    assert runs[0].metrics == runs[1].metrics
+    assert np.abs(a.commanded[:, 1:]).max() > 0.1, "the followers moved"
