@@ -97,6 +97,19 @@ def test_train_config_accepts_a_shipped_recipe_name():
         resolve_recipe("no_such_recipe")
 
 
+@pytest.mark.parametrize("name", ["ppo_safe", "ppo_study", "ppo_safe_relative"])
+def test_every_shipped_recipe_builds_its_env(name):
+    from boids_env import BoidsEnv
+    from boids_env.train.config import TrainConfig, resolve_recipe
+
+    config = TrainConfig.from_toml(resolve_recipe(name))
+    env = BoidsEnv(robots=max(config.group_sizes), **config.env_fields)
+    env.reset(seed=0)
+    relative = config.env_fields.get("relative_actions", False)
+    assert env.action_space("follower_1").high[0] == pytest.approx(1.0 if relative else 0.5)
+    assert relative == (name == "ppo_safe_relative")
+
+
 def test_whole_rollouts_rounds_up_to_what_ppo_runs():
     from boids_env.train.config import TrainConfig
     from boids_env.train.run import whole_rollouts
