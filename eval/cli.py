@@ -117,10 +117,14 @@ def parse_start(text: str) -> float:
 
 
 def _policy_extras(specs: list[str]) -> list[str]:
-    """Extras the named policies need (a saved SB3 model needs ``train``)."""
+    """Extras the named policies need: a saved SB3 model without a numpy actor (one not saved
+    by ``boids train``) needs ``train``; the shipped ones and ours act in numpy."""
     from boids_env.policies.registry import MODELS
+    from boids_env.policies.sb3_policy import has_numpy_actor
 
-    return ["train"] if any(s in MODELS or s.endswith(".zip") for s in specs) else []
+    models = [str(MODELS.get(s, s)) for s in specs]
+    needs = any(m.endswith(".zip") and not has_numpy_actor(m) for m in models)
+    return ["train"] if needs else []
 
 
 def _env_fields(args: argparse.Namespace) -> dict[str, Any]:

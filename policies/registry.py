@@ -17,7 +17,7 @@ from boids_env.policies.reynolds import ReynoldsPolicy
 BUILTIN = ("reynolds", "random", "learned", "learned-study")
 LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_safe.zip"
 """The shipped PPO follower policy (recipe ``ppo_safe``: leader frame, safe reward, varied paths,
-sizes and speeds); needs the train extra."""
+sizes and speeds); acts in numpy (its zip carries the actor), no extra needed."""
 STUDY_MODEL = Path(__file__).parent / "models" / "ppo_study.zip"
 """PPO trained on the study's reward alone (recipe ``ppo_study``): it wins on the study's metrics
 while its robots touch most of the time; kept to show what optimising those metrics does."""

@@ -118,6 +118,16 @@ def actor_of(model: Any) -> MLPActor | None:
                     space.low, space.high)
 
 
+def has_numpy_actor(path: str | Path) -> bool:
+    """Whether a model zip carries its actor for numpy (then acting needs no train extra);
+    False for a file that is missing or not a zip (its loading reports why)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            return ACTOR_ENTRY in zf.namelist()
+    except (OSError, zipfile.BadZipFile, zipfile.LargeZipFile, EOFError):
+        return False
+
+
 def load_model_policy(path: str | Path, device: str = "cpu") -> BatchPolicy:
     """The policy of a model zip: its stored numpy actor when it has one (acting on the CPU
     without importing torch), else :meth:`SB3Policy.load` (also for ``device`` other than
@@ -126,16 +136,21 @@ def load_model_policy(path: str | Path, device: str = "cpu") -> BatchPolicy:
     if not path.is_file():
         raise FileNotFoundError(f"policy model file not found: {path}")
     meta = read_meta(path)
-    if device == "cpu":
+    if device == "cpu" and has_numpy_actor(path):
         with zipfile.ZipFile(path) as zf:
-            raw = zf.read(ACTOR_ENTRY) if ACTOR_ENTRY in zf.namelist() else None
+            raw = zf.read(ACTOR_ENTRY)
         if raw is not None:
             env_fields = _env_fields(path, meta.get("env_fields"))
             try:
                 return MLPActor.from_bytes(raw, env_fields, name=path.stem)
             except ValueError as exc:
                 raise ValueError(f"SB3 model {path}: {exc}") from None
-    return SB3Policy.load(path, device=device)
+    try:
+        return SB3Policy.load(path, device=device)
+    except ImportError as exc:
+        raise ImportError(f"acting from {path.name} goes through torch (it holds no "
+                          f"{ACTOR_ENTRY}: not saved by boids train, or not an MLP numpy "
+                          f"runs) and needs: pip install 'boids-env[train]' ({exc})") from exc
 
 
 class SB3Policy(BatchPolicy):

@@ -132,3 +132,24 @@ def test_the_learned_policy_is_deterministic_per_seed():
     assert np.array_equal(a.positions, b.positions) and np.array_equal(a.commanded, b.commanded)
     assert runs[0].metrics == runs[1].metrics
     assert np.abs(a.commanded[:, 1:]).max() > 0.1, "the followers moved"
+
+
+def test_the_shipped_models_need_no_extra_and_a_foreign_zip_names_the_train_extra(
+        tmp_path, monkeypatch):
+    from boids_env.eval.cli import _policy_extras
+
+    assert _policy_extras(["learned", "learned-study", str(LEARNED_MODEL), "reynolds"]) == []
+    foreign = tmp_path / "foreign.zip"
+    with zipfile.ZipFile(LEARNED_MODEL) as src, zipfile.ZipFile(foreign, "w") as dst:
+        for name in src.namelist():
+            if name != ACTOR_ENTRY:
+                dst.writestr(name, src.read(name))
+    assert _policy_extras([str(foreign)]) == ["train"]
+
+    def no_torch(*args, **kwargs):
+        raise ImportError("No module named 'torch'")
+
+    monkeypatch.setattr(SB3Policy, "load", no_torch)
+    with pytest.raises(ImportError, match=r"foreign.zip.*boids-env\[train\]"):
+        load_model_policy(foreign)
+    assert isinstance(load_model_policy(LEARNED_MODEL), MLPActor)  # numpy needs no torch
