@@ -76,7 +76,10 @@ def _curves_parser(sub: argparse._SubParsersAction) -> None:
                        "and an SVG beside it.")
     p.add_argument("runs", nargs="+", help="boids train output folders (or evaluations.csv "
                    "files); label one with LABEL=PATH")
-    p.add_argument("--out", default="curves.png", help="figure file (curves.png)")
+    # dest "figure": --out here names a file, which a rerun replaces (main's --out check is
+    # for output folders)
+    p.add_argument("--out", dest="figure", default="curves.png",
+                   help="figure file (curves.png); a rerun replaces it")
     p.add_argument("--reference", type=float, default=None,
                    help="a total to draw as a dashed line (e.g. Reynolds' on the default "
                    "case)")
@@ -106,7 +109,7 @@ def _cmd_curves(args: argparse.Namespace) -> int:
             raise ValueError(f"{csv} is not a boids train evaluations.csv (no timesteps rows)")
         runs[label if eq else str(path)] = table
     reference = {"total": args.reference} if args.reference is not None else None
-    out = learning_curves(runs, Path(args.out), reference, title=args.title)
+    out = learning_curves(runs, Path(args.figure), reference, title=args.title)
     print(f"wrote {out} and {out.with_suffix('.svg')}")
     return 0
 

@@ -43,6 +43,8 @@ def test_curves_plot_every_run_as_written(tmp_path, monkeypatch, capsys):
     svg = out.with_suffix(".svg").read_text()
     assert "Reynolds 2.43" in svg and "seed 0" in svg and "time some robots touch" in svg
     assert f"wrote {out}" in capsys.readouterr().out
+    # a rerun replaces the figure (--out names a file here, not an output folder)
+    assert main(["curves", str(a), "--out", str(out)]) == 0
 
 
 def test_curves_refuse_a_folder_without_evaluations_and_a_foreign_csv(tmp_path, capsys):
