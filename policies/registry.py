@@ -65,11 +65,10 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
     if spec.endswith(".zip"):
         if not Path(spec).is_file():
             raise FileNotFoundError(f"policy model file not found: {spec}")
-        try:
-            from boids_env.policies.sb3_policy import load_model_policy
-        except ImportError as exc:
-            raise ImportError("loading an SB3 model needs: pip install 'boids-env[train]'"
-                              ) from exc
+        # numpy only: torch is imported (and its extra asked for) only for a model without
+        # a numpy actor
+        from boids_env.policies.sb3_policy import load_model_policy
+
         return load_model_policy(spec)
     if ":" in spec:
         obj = _import_object(spec)

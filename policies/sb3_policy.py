@@ -135,10 +135,10 @@ def load_model_policy(path: str | Path, device: str = "cpu") -> BatchPolicy:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"policy model file not found: {path}")
-    meta = read_meta(path)
-    if device == "cpu" and has_numpy_actor(path):
+    meta = read_meta(path)  # a file that is not a zip is refused here, by name
+    if device == "cpu":
         with zipfile.ZipFile(path) as zf:
-            raw = zf.read(ACTOR_ENTRY)
+            raw = zf.read(ACTOR_ENTRY) if ACTOR_ENTRY in zf.namelist() else None
         if raw is not None:
             env_fields = _env_fields(path, meta.get("env_fields"))
             try:
