@@ -64,6 +64,12 @@ class FlockEvalCallback(BaseCallback):
         self.best = float("inf")
         self._next = every
 
+    def _on_training_start(self) -> None:
+        # A resumed run starts at its checkpoint's timesteps: the next evaluation is the next
+        # multiple of ``every`` after them, not one per step until the schedule catches up.
+        if self.every:
+            self._next = (self.num_timesteps // self.every + 1) * self.every
+
     def _on_step(self) -> bool:
         if self.every and self.num_timesteps >= self._next:
             self._next += self.every

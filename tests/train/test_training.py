@@ -61,8 +61,15 @@ def test_resume_continues_to_the_total(tmp_path):
     cfg = TrainConfig(**{**TINY, "checkpoint_every": 600})
     train(cfg, tmp_path / "first")
     ckpt = sorted((tmp_path / "first" / "checkpoints").glob("*.zip"))[0]
-    path = train(cfg.replace(total_timesteps=2400), tmp_path / "resumed", resume=ckpt)
+    start = SB3Policy.load(ckpt).model.num_timesteps
+    path = train(cfg.replace(total_timesteps=2400, eval_every=500), tmp_path / "resumed",
+                 resume=ckpt)
     assert SB3Policy.load(path).model.num_timesteps >= 2400
+    # evaluations go on every 500 steps from the checkpoint, not once per step to catch up
+    evals = (tmp_path / "resumed" / "evaluations.csv").read_text().splitlines()[1:]
+    steps = [int(row.split(",")[0]) for row in evals]
+    assert steps and steps[0] > start
+    assert len(steps) == len({s // 500 for s in steps}) <= (2400 - start) // 500 + 1
     with pytest.raises(FileNotFoundError, match="checkpoint to resume not found"):
         train(cfg, tmp_path / "x", resume=tmp_path / "missing.zip")
 
