@@ -193,9 +193,13 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._observer.reset(self._rng, self._leader.initial_heading)
         self._realism: Realism | None = None
         if episode.realism.active:  # its own stream, drawn only when on: defaults unchanged
+            rng = np.random.default_rng(self._rng.integers(2**63))
+            # stale observations draw from a stream of the episode seed alone (a ROS
+            # controller node draws the same); without a seed, from the env's stream
+            stale_seed = (int(seed) if seed is not None else int(self._rng.integers(2**63))
+                          ) if episode.realism.resolved()["stale_observations"] > 0 else 0
             self._realism = Realism(episode.realism, sc.robots, wc.dt, sc.startup_time,
-                                    wc.robot_radius, wc.max_speed,
-                                    np.random.default_rng(self._rng.integers(2**63)))
+                                    wc.robot_radius, wc.max_speed, rng, stale_seed)
         self._reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
         self._safety_scale = -np.array(episode.metrics.safety_weights)[:, None] * wc.dt
         self.agents = list(self.possible_agents)

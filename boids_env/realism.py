@@ -15,10 +15,11 @@ seed, so a run stays deterministic per seed.
 - ``jitter_leader``: the noise and the jitter apply to the leader too.
 - ``start_jitter``: each follower starts U(0, s) seconds after the start-up (nodes started one
   by one).
+- ``stale_observations``: probability that a follower's observation is not refreshed in a
+  step (its controller reads the previous one: unsynchronised pose topics); 0.1 in ``ros``.
 - robustness factors (not in the ``ros`` preset): ``command_latency`` (each follower executes
-  its command 0..k steps late, k drawn per follower and episode), ``stale_observations``
-  (probability a follower's observation is not refreshed), ``drop_commands`` (probability a
-  follower's new command is lost and the previous one executed again).
+  its command 0..k steps late, k drawn per follower and episode), ``drop_commands``
+  (probability a follower's new command is lost and the previous one executed again).
 
 ``realism="ros"`` switches on the combination that reproduced the study best in our
 measurements (see the README); explicit fields override the preset's values.
@@ -45,7 +46,7 @@ OFF: dict[str, Any] = {"stall": False, "stall_margin": 0.0, "command_noise": 0.0
 PRESETS: dict[str, dict[str, Any]] = {
     "none": OFF,
     "ros": {**OFF, "stall": True, "stall_margin": 0.1, "timing_jitter": 0.2,
-            "jitter_leader": True, "start_jitter": 2.5},
+            "jitter_leader": True, "start_jitter": 2.5, "stale_observations": 0.1},
 }
 """The fields each realism preset sets."""
 
@@ -110,7 +111,8 @@ class Realism:
     observations; all drawn from ``rng``."""
 
     def __init__(self, config: RealismConfig, robots: int, dt: float, startup_time: float,
-                 radius: float, max_speed: float, rng: np.random.Generator) -> None:
+                 radius: float, max_speed: float, rng: np.random.Generator,
+                 stale_seed: int = 0) -> None:
         self.p = config.resolved()
         self.n = robots
         self.dt = dt
@@ -122,7 +124,7 @@ class Realism:
         self.latency = rng.integers(0, self.p["command_latency"] + 1, followers)
         depth = int(self.p["command_latency"]) + 1
         self._queue = np.zeros((depth, followers, 2))  # received commands, newest first
-        self._last_obs: npt.NDArray[np.float32] | None = None
+        self.stale = StaleObservations(self.p["stale_observations"], stale_seed)
         self.stalled = np.zeros(robots, dtype=bool)
         """Which robots the stall stopped in the last step."""
 
@@ -172,10 +174,33 @@ class Realism:
 
     def observations(self, obs: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         """``obs`` with the rows of followers whose observation went stale replaced by their
-        previous one."""
-        if self.p["stale_observations"] > 0 and self._last_obs is not None:
-            stale = self.rng.random(len(obs)) < self.p["stale_observations"]
+        previous one (see :class:`StaleObservations`)."""
+        return self.stale(obs)
+
+
+STALE_STREAM = 0x57A1E
+"""Key of the stale-observation stream: ``default_rng([seed, STALE_STREAM])``."""
+
+
+class StaleObservations:
+    """Observations not refreshed: each step, each follower's row is replaced by its previous
+    one with probability ``p``.
+
+    Its own random stream, keyed by the episode seed alone, so that a ROS controller node,
+    which builds the observations itself (``boids ros controller``), draws the same rows as the
+    env does in-process: the first observation of an episode is always fresh, then one draw
+    per follower per observation.
+    """
+
+    def __init__(self, p: float, seed: int) -> None:
+        self.p = float(p)
+        self.rng = np.random.default_rng([int(seed), STALE_STREAM])
+        self._last: npt.NDArray[np.float32] | None = None
+
+    def __call__(self, obs: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        if self.p > 0 and self._last is not None:
+            stale = self.rng.random(len(obs)) < self.p
             obs = obs.copy()
-            obs[stale] = self._last_obs[stale]
-        self._last_obs = obs
+            obs[stale] = self._last[stale]
+        self._last = obs
         return obs

@@ -44,6 +44,7 @@ from boids_env.eval.ros.protocol import (
 )
 from boids_env.observations import INITIAL_HEADING, Observer
 from boids_env.policies.registry import load_policy, split_preset
+from boids_env.realism import StaleObservations
 
 SYNC_MODES = ("stamp", "rate")
 FIRST_CONNECTION_WAIT = 1.0
@@ -119,6 +120,7 @@ class ControllerNode:
         base = self._base_config()
         self.config = base.replace(**env_fields_for(self.policy, {}))
         self.observer = Observer(self.config)
+        self.stale: StaleObservations | None = None
         self.robots = self.config.scenario.robots
         self.dt = self.config.world.dt
         self.agents = [f"follower_{i}" for i in range(1, self.robots)]
@@ -230,6 +232,8 @@ class ControllerNode:
         self.policy.reset(seed)
         self.observer.reset(np.random.default_rng(seed),
                             info.initial_heading if info is not None else INITIAL_HEADING)
+        p = self.config.realism.resolved()["stale_observations"]
+        self.stale = StaleObservations(p, seed) if p > 0 else None  # as the env draws them
         if not self.options.quiet:
             which = f"episode {info.index}, seed {seed}" if info else f"seed {seed}"
             print(f"{self.name}: new episode ({which}) at stamp {stamp / 1e9:.1f} s",
@@ -265,6 +269,8 @@ class ControllerNode:
         self._last_stamp = tick.stamp_ns
         self._apply_params()
         obs = self.observer(tick.positions, tick.velocities)
+        if self.stale is not None:
+            obs = self.stale(obs)
         actions = self.policy.act(dict(zip(self.agents, obs, strict=True)))
         # as the env parses them: float64, then into the world frame (no speed clip here:
         # the robot, or the simulator, limits the speed, as the env does)

@@ -107,6 +107,25 @@ def test_stale_observations_repeat_the_previous_row():
     assert 35 < same < 105, same  # about half of 140
 
 
+def test_stale_rows_come_from_the_episode_seed_alone():
+    # A ROS controller node builds observations itself and must draw the same stale rows:
+    # a StaleObservations of the episode seed, whatever the other mechanisms draw.
+    from boids_env.realism import StaleObservations
+
+    for extra in ({}, {"timing_jitter": 0.3, "command_noise": 0.05}):
+        env = parallel_env(robots=6, stale_observations=0.4, startup_time=0.0, **extra)
+        first, _ = env.reset(seed=11)
+        mirror = StaleObservations(0.4, 11)
+        fresh = np.stack([first[a] for a in env.agents])
+        assert np.array_equal(mirror(fresh), fresh)  # the first observation is never stale
+        for _ in range(15):
+            before = {a: first[a].copy() for a in env.agents}
+            first, *_ = env.step({a: np.array([0.2, -0.1]) for a in env.agents})
+            drawn = mirror.rng.random(len(env.agents)) < 0.4
+            repeated = np.array([np.array_equal(first[a], before[a]) for a in env.agents])
+            assert np.array_equal(drawn, repeated), (extra, drawn, repeated)
+
+
 def test_pickle_mid_episode_with_realism_continues_identically():
     import pickle
 
