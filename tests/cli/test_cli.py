@@ -97,7 +97,17 @@ def test_train_config_accepts_a_shipped_recipe_name():
         resolve_recipe("no_such_recipe")
 
 
-@pytest.mark.parametrize("name", ["ppo_safe", "ppo_study", "ppo_safe_relative"])
+def _recipes():
+    from boids_env.train.config import RECIPES
+
+    return sorted(p.stem for p in RECIPES.glob("*.toml"))
+
+
+def test_the_recipes_are_the_documented_ones():
+    assert _recipes() == ["ppo_safe", "ppo_safe_large", "ppo_safe_relative", "ppo_study"]
+
+
+@pytest.mark.parametrize("name", _recipes())
 def test_every_shipped_recipe_builds_its_env(name):
     from boids_env import BoidsEnv
     from boids_env.train.config import TrainConfig, resolve_recipe
@@ -107,7 +117,19 @@ def test_every_shipped_recipe_builds_its_env(name):
     env.reset(seed=0)
     relative = config.env_fields.get("relative_actions", False)
     assert env.action_space("follower_1").high[0] == pytest.approx(1.0 if relative else 0.5)
-    assert relative == (name == "ppo_safe_relative")
+    assert relative == (name in ("ppo_safe_relative", "ppo_safe_large"))
+
+
+def test_the_large_recipe_continues_a_relative_run():
+    # ppo_safe_large resumes a ppo_safe_relative model: same observations and actions, more steps
+    from boids_env.train.config import TrainConfig, resolve_recipe
+
+    first, second = (TrainConfig.from_toml(resolve_recipe(n))
+                     for n in ("ppo_safe_relative", "ppo_safe_large"))
+    reward = {"reward_cohesion"}
+    assert {k: v for k, v in second.env_fields.items() if k not in reward} == first.env_fields
+    assert second.net_arch == first.net_arch and 49 in second.group_sizes
+    assert second.total_timesteps > first.total_timesteps
 
 
 def test_whole_rollouts_rounds_up_to_what_ppo_runs():
