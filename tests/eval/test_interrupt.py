@@ -23,8 +23,10 @@ HERE = Path(__file__).parent
 ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(
     p for p in (str(HERE), os.environ.get("PYTHONPATH", "")) if p)}
 EPISODES_IN_SUITE = 8
-SUITE = ('name = "slow"\nseeds = 8\n[defaults]\nrobots = 3\nmax_cycles = 12\n'
+SUITE = ('name = "slow"\nseeds = 8\n[defaults]\nrobots = 3\nmax_cycles = 40\n'
          '[[case]]\nname = "one"\n')
+"""8 episodes of about 2 s each on 2 workers: the run lasts long enough that a test process
+starved of CPU (pytest-xdist on 2 cores) still signals it mid-run."""
 
 
 def session_processes(sid: int) -> list[int]:
@@ -95,6 +97,7 @@ def _rerun_completes(tmp_path: Path, out: Path) -> None:
 def test_ctrl_c_stops_within_seconds_keeps_finished_episodes_and_leaves_no_process(tmp_path):
     proc, out = _start(tmp_path)
     seen = _wait_for_rows(proc, out, 2)
+    assert proc.poll() is None, "the run ended before Ctrl-C was sent"
     os.killpg(proc.pid, signal.SIGINT)
     start = time.monotonic()
     _, err = proc.communicate(timeout=60)
