@@ -23,10 +23,15 @@ HERE = Path(__file__).parent
 ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(
     p for p in (str(HERE), os.environ.get("PYTHONPATH", "")) if p)}
 EPISODES_IN_SUITE = 8
-SUITE = ('name = "slow"\nseeds = 8\n[defaults]\nrobots = 3\nmax_cycles = 40\n'
+SUITE = ('name = "slow"\nseeds = 8\n[defaults]\nrobots = 3\nmax_cycles = 12\n'
          '[[case]]\nname = "one"\n')
-"""8 episodes of about 2 s each on 2 workers: the run lasts long enough that a test process
-starved of CPU (pytest-xdist on 2 cores) still signals it mid-run."""
+
+
+def _as_in_a_terminal() -> None:
+    """The child's SIGINT as a terminal gives it (default), whatever pytest inherited: a
+    shell starting a job in the background (``cmd &``, nohup) sets it to ignored, and Python
+    then installs no KeyboardInterrupt handler, so Ctrl-C could not be tested."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def session_processes(sid: int) -> list[int]:
@@ -50,7 +55,7 @@ def _start(tmp_path: Path) -> tuple[subprocess.Popen, Path]:
     proc = subprocess.Popen(
         [sys.executable, "-m", "boids_env.train.cli", "eval", "--policy", "faulty_policies:Slow",
          "--suite", str(suite), "--workers", "2", "--out", str(out), "--no-progress"],
-        env=ENV, cwd=tmp_path, start_new_session=True,
+        env=ENV, cwd=tmp_path, start_new_session=True, preexec_fn=_as_in_a_terminal,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     return proc, out
 
