@@ -196,8 +196,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             rng = np.random.default_rng(self._rng.integers(2**63))
             # stale observations draw from a stream of the episode seed alone (a ROS
             # controller node draws the same); without a seed, from the env's stream
-            stale_seed = (int(seed) if seed is not None else int(self._rng.integers(2**63))
-                          ) if episode.realism.resolved()["stale_observations"] > 0 else 0
+            stale_seed = 0
+            if episode.realism.resolved()["stale_observations"] > 0:
+                stale_seed = int(seed) if seed is not None else int(self._rng.integers(2**63))
             self._realism = Realism(episode.realism, sc.robots, wc.dt, sc.startup_time,
                                     wc.robot_radius, wc.max_speed, rng, stale_seed)
         self._reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
