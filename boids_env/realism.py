@@ -16,7 +16,7 @@ seed, so a run stays deterministic per seed.
 - ``start_jitter``: each follower starts U(0, s) seconds after the start-up (nodes started one
   by one).
 - ``stale_observations``: probability that a follower's observation is not refreshed in a
-  step (its controller reads the previous one: unsynchronised pose topics); 0.1 in ``ros``.
+  step (its controller reads the previous one: unsynchronised pose topics); 0.15 in ``ros``.
 - robustness factors (not in the ``ros`` preset): ``command_latency`` (each follower executes
   its command 0..k steps late, k drawn per follower and episode), ``drop_commands``
   (probability a follower's new command is lost and the previous one executed again).
@@ -45,8 +45,12 @@ OFF: dict[str, Any] = {"stall": False, "stall_margin": 0.0, "command_noise": 0.0
                        "command_latency": 0, "stale_observations": 0.0, "drop_commands": 0.0}
 PRESETS: dict[str, dict[str, Any]] = {
     "none": OFF,
-    "ros": {**OFF, "stall": True, "stall_margin": 0.1, "timing_jitter": 0.2,
-            "jitter_leader": True, "start_jitter": 2.5, "stale_observations": 0.1},
+    # Stage's stall, staggered node start-up and unsynchronised pose topics: the best of the
+    # combinations scored on 16 blocks of 5 seeds, confirmed on 8 held-out blocks (README).
+    # Timing jitter is left out: it turned the followers' commands about ±180° on the
+    # westward legs at 7 robots, where the study's alignment counts show no such spread.
+    "ros": {**OFF, "stall": True, "stall_margin": 0.1, "start_jitter": 2.0,
+            "stale_observations": 0.15},
 }
 """The fields each realism preset sets."""
 

@@ -54,7 +54,7 @@ def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) ->
     p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
     p.add_argument("--realism", choices=REALISMS, default=None,
                    help="ROS/Stage realism: none (the ideal world, default) or ros (stall, "
-                   "timing jitter, staggered start; see the README)")
+                   "staggered start, stale observations; see the README)")
     p.add_argument("--no-wrap", action="store_true",
                    help="the study's unwrapped alignment angle rule")
 
@@ -199,7 +199,7 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                        "reproduction (findings per block, mean and range)")
     p.add_argument("--realism", choices=REALISMS, default=None,
                    help="ROS/Stage realism in every case: none (the ideal world, default) or "
-                   "ros (stall, timing jitter, staggered start; see the README)")
+                   "ros (stall, staggered start, stale observations; see the README)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
     p.add_argument("--backend", choices=BACKENDS, default="process",
                    help="process (isolated worker processes, default), ray, or inline (in "
