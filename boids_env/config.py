@@ -249,6 +249,11 @@ class MetricsConfig:
     reward_wall: float | None = None
     """Weight of the penalty while a follower's centre is within ``wall_distance`` of a wall;
     None: the preset's."""
+    reward_gap: float = 0.0
+    """Weight of the penalty per metre a follower is beyond ``cohesion_threshold`` (−w · excess
+    · dt per step). Not in the study: the cohesion flag alone tells a follower too far to get
+    back soon nothing about getting closer, so it trades the flag for alignment; this dense
+    term pays for closing in. 0 (off) under both rewards."""
     safety_distance: float = 0.3
     """Centre distance (m) under which ``reward_proximity`` applies. Not in the study."""
     wall_distance: float = 0.15
@@ -266,7 +271,7 @@ class MetricsConfig:
                      unit="degrees"))
         if not isinstance(self.wrap_alignment, bool):
             raise ValueError(f"wrap_alignment must be True or False, got {self.wrap_alignment!r}")
-        for name in ("reward_separation", "reward_cohesion", "reward_alignment"):
+        for name in ("reward_separation", "reward_cohesion", "reward_alignment", "reward_gap"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
         if self.separation_threshold >= self.cohesion_threshold:
             raise ValueError(f"separation_threshold ({self.separation_threshold} m) must be "

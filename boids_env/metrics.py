@@ -280,6 +280,12 @@ def safety_flags(positions: FloatArray, radius: float, arena_half_size: float,
             "wall": np.any(np.abs(pos[1:]) >= reach, axis=1)}
 
 
+def cohesion_gap(positions: FloatArray, cohesion_threshold: float) -> FloatArray:
+    """Metres each follower is beyond ``cohesion_threshold`` from the leader (0 within it):
+    (..., N, 2) -> (..., N-1). The dense counterpart of the cohesion flag (``reward_gap``)."""
+    return np.maximum(leader_distance(positions) - cohesion_threshold, 0.0)
+
+
 def polarization(velocities: FloatArray) -> FloatArray:
     """|mean unit velocity| of the robots that move: (..., N, 2) -> (...); 0 when none move."""
     speed = np.linalg.norm(velocities, axis=-1, keepdims=True)

@@ -20,6 +20,7 @@ from boids_env.recording import Recording
     ("init_jitter", 0.5, "m"), ("separation_threshold", -1, "m"),
     ("alignment_threshold_deg", 400, "degrees"), ("wrap_alignment", "yes", "True or False"),
     ("max_cycles", 0, r"\[1, "), ("waypoints", [(1, 2, 3)], "pairs"),
+    ("reward_gap", -1.0, r"\[0.0, 1000"), ("reward_gap", float("inf"), "reward_gap"),
 ])
 def test_bad_config_values_name_field_and_range(field, value, allowed):
     with pytest.raises(ValueError, match=field) as info:

@@ -162,3 +162,45 @@ def test_safe_reward_terms_follow_the_flags():
         _, _, _, _, info = study.step({"follower_1": np.array([0.0, 0.0]),
                                        "follower_2": np.array([-0.5, 0.0])})
         assert info["follower_2"]["reward_contact"] == 0.0
+
+
+def test_cohesion_gap_is_the_distance_beyond_the_threshold():
+    pos = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, -2.25], [3.0, 4.0]])
+    assert metrics.cohesion_gap(pos, 2.25).tolist() == pytest.approx([0.0, 0.0, 2.75])
+    batch = np.stack([pos, pos + [1.0, 0.0]])  # (T, N, 2): a shift changes nothing
+    np.testing.assert_allclose(metrics.cohesion_gap(batch, 2.25), [[0, 0, 2.75]] * 2)
+
+
+def test_gap_reward_pays_per_metre_beyond_the_cohesion_threshold():
+    """The opt-in reward_gap term: −w · (d − 2.25 m)₊ · dt for each follower, in the infos and
+    the reward; zero for followers within the threshold and when the weight is 0."""
+    fields = dict(robots=3, init_jitter=0.0, startup_time=100)
+    env = parallel_env(reward_gap=4.0, **fields)
+    obs, infos = env.reset(seed=0)
+    assert all(i["reward_gap"] == 0.0 for i in infos.values())
+    still = {a: np.zeros(2) for a in env.agents}
+    _, rew, _, _, info = env.step(still)
+    pos = env.snapshot().positions
+    d = np.linalg.norm(pos[1:] - pos[0], axis=1)
+    assert (d < 2.25).all(), d  # the study's grid: every follower within the threshold
+    assert all(i["reward_gap"] == 0.0 for i in info.values()), info
+    far = parallel_env(reward_gap=4.0, **fields)
+    far.reset(seed=0)
+    for _ in range(60):  # follower_2 drives away from the waiting leader for 6 s
+        _, rew, _, _, info = far.step({"follower_1": np.zeros(2),
+                                       "follower_2": np.array([0.5, -0.5])})
+    pos = far.snapshot().positions
+    excess = np.linalg.norm(pos[2] - pos[0]) - 2.25
+    assert excess > 0.5, excess
+    i = info["follower_2"]
+    assert i["reward_gap"] == pytest.approx(-4.0 * excess * 0.1), (i, excess)
+    assert i["reward_cohesion"] == pytest.approx(-0.1)
+    assert rew["follower_2"] == pytest.approx(sum(i.values()))
+    assert info["follower_1"]["reward_gap"] == 0.0
+    off = parallel_env(**fields)  # the default weight 0: the term is zero even far away
+    off.reset(seed=0)
+    for _ in range(60):
+        _, _, _, _, info = off.step({"follower_1": np.zeros(2),
+                                     "follower_2": np.array([0.5, -0.5])})
+    assert info["follower_2"]["reward_gap"] == 0.0
+    assert info["follower_2"]["reward_cohesion"] == pytest.approx(-0.1)
