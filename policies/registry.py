@@ -16,7 +16,8 @@ from boids_env.policies.reynolds import ReynoldsPolicy
 
 BUILTIN = ("reynolds", "random", "learned", "learned-study")
 LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_safe.zip"
-"""The shipped PPO follower policy (recipe ``ppo_safe``: leader frame, safe reward, varied paths,
+"""The shipped PPO follower policy (recipes ``ppo_safe`` then ``ppo_safe_stage2``: leader frame,
+actions relative to the leader's velocity, safe reward with the cohesion gap, varied paths,
 sizes and speeds); acts in numpy (its zip carries the actor), no extra needed."""
 STUDY_MODEL = Path(__file__).parent / "models" / "ppo_study.zip"
 """PPO trained on the study's reward alone (recipe ``ppo_study``): it wins on the study's metrics

@@ -81,6 +81,10 @@ class TrainConfig:
     batch_size: int = 4608
     net_arch: tuple[int, ...] = (64, 64)
     log_std_init: float = -1.5
+    resume_log_std: float | None = None
+    """With ``--resume``: set the policy's log action std to this before training on (PPO;
+    None keeps the checkpoint's). A converged policy acts with a std of about 0.04 m/s and
+    explores too little to find what a changed reward asks for (README, learned followers)."""
     # PPO.
     n_steps: int = 256
     n_epochs: int = 5
@@ -130,6 +134,12 @@ class TrainConfig:
             _set(self, name, check_number(name, getattr(self, name), lo, hi, lo_open=True))
         _set(self, "ent_coef", check_number("ent_coef", self.ent_coef, 0.0, 10.0))
         _set(self, "log_std_init", check_number("log_std_init", self.log_std_init, -20, 5))
+        if self.resume_log_std is not None:
+            if self.algorithm != "ppo":
+                raise ValueError("resume_log_std applies to PPO's Gaussian policy only, got "
+                                 f"algorithm={self.algorithm!r}")
+            _set(self, "resume_log_std", check_number("resume_log_std", self.resume_log_std,
+                                                      -20, 5))
         for name, lo in (("batch_size", 1), ("n_steps", 1), ("n_epochs", 1), ("buffer_size", 1),
                          ("learning_starts", 0), ("train_freq", 1), ("gradient_steps", 1),
                          ("eval_every", 0), ("checkpoint_every", 0)):

@@ -90,6 +90,9 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     out = Path(out)
     if resume is not None and not Path(resume).is_file():
         raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
+    if resume is None and config.resume_log_std is not None:
+        raise ValueError("resume_log_std is set but no checkpoint is resumed: it resets the "
+                         "exploration of a trained model (give --resume CHECKPOINT.zip)")
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(config.resolved_threads())
     device = config.resolved_device()
@@ -107,6 +110,9 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
                                  f"says algorithm={config.algorithm!r}")
             model = cls.load(resume, env=venv, device=device, tensorboard_log=str(out / "tb"))
             model.set_random_seed(config.seed)
+            if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
+                with torch.no_grad():
+                    model.policy.log_std.fill_(config.resume_log_std)
         else:
             model = cls("MlpPolicy", venv, device=device, verbose=verbose,
                         tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())

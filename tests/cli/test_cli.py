@@ -1,5 +1,6 @@
 """The ``boids`` command's arguments: every spelling of a policy, paths, extras, interrupts."""
 
+import dataclasses
 import json
 import re
 
@@ -104,7 +105,7 @@ def _recipes():
 
 
 def test_the_recipes_are_the_documented_ones():
-    assert _recipes() == ["ppo_safe", "ppo_safe_large", "ppo_safe_relative", "ppo_study"]
+    assert _recipes() == ["ppo_safe", "ppo_safe_stage2", "ppo_study"]
 
 
 @pytest.mark.parametrize("name", _recipes())
@@ -117,19 +118,22 @@ def test_every_shipped_recipe_builds_its_env(name):
     env.reset(seed=0)
     relative = config.env_fields.get("relative_actions", False)
     assert env.action_space("follower_1").high[0] == pytest.approx(1.0 if relative else 0.5)
-    assert relative == (name in ("ppo_safe_relative", "ppo_safe_large"))
+    assert relative == (name in ("ppo_safe", "ppo_safe_stage2"))
 
 
-def test_the_large_recipe_continues_a_relative_run():
-    # ppo_safe_large resumes a ppo_safe_relative model: same observations and actions, more steps
+def test_stage2_continues_a_ppo_safe_run():
+    # ppo_safe_stage2 resumes a ppo_safe model: the same observations, actions and draws, more
+    # steps, its exploration restarted, and a stronger wall term
     from boids_env.train.config import TrainConfig, resolve_recipe
 
     first, second = (TrainConfig.from_toml(resolve_recipe(n))
-                     for n in ("ppo_safe_relative", "ppo_safe_large"))
-    reward = {"reward_cohesion"}
-    assert {k: v for k, v in second.env_fields.items() if k not in reward} == first.env_fields
-    assert second.net_arch == first.net_arch and 49 in second.group_sizes
+                     for n in ("ppo_safe", "ppo_safe_stage2"))
+    wall = {"reward_wall", "wall_distance"}
+    assert {k: v for k, v in second.env_fields.items() if k not in wall} == first.env_fields
+    assert dataclasses.replace(second, total_timesteps=first.total_timesteps,
+                               env_fields=first.env_fields, resume_log_std=None) == first
     assert second.total_timesteps > first.total_timesteps
+    assert first.resume_log_std is None and second.resume_log_std is not None
 
 
 def test_whole_rollouts_rounds_up_to_what_ppo_runs():

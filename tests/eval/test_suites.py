@@ -29,8 +29,12 @@ def test_generalisation_suite_unseen_cases_lie_outside_the_shipped_recipe():
     from boids_env.config import EnvConfig
     from boids_env.train.config import TrainConfig, resolve_recipe
 
-    recipe = TrainConfig.from_toml(resolve_recipe("ppo_safe"))
     default_size = EnvConfig().scenario.path_size
+    first, second = (TrainConfig.from_toml(resolve_recipe(n))
+                     for n in ("ppo_safe", "ppo_safe_stage2"))
+    assert (first.group_sizes, first.leader_speeds, first.paths) == (
+        second.group_sizes, second.leader_speeds, second.paths)
+    recipe = first
 
     def trained_on(env):
         return (env.get("robots", 13) in recipe.group_sizes

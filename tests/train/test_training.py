@@ -74,6 +74,26 @@ def test_resume_continues_to_the_total(tmp_path):
         train(cfg, tmp_path / "x", resume=tmp_path / "missing.zip")
 
 
+def test_resume_log_std_restarts_exploration(tmp_path):
+    cfg = TrainConfig(**{**TINY, "log_std_init": -3.0})
+    first = train(cfg, tmp_path / "first")
+    before = SB3Policy.load(first).model.policy.log_std.detach()
+    assert torch.all(before < -2.8), before  # the run's own (tiny) exploration
+    longer = {"total_timesteps": 2400, "log_std_init": -3.0}
+    kept = train(cfg.replace(**longer), tmp_path / "kept", resume=first)
+    reset = train(cfg.replace(**longer, resume_log_std=-1.0), tmp_path / "reset", resume=first)
+    kept_std = SB3Policy.load(kept).model.policy.log_std.detach()
+    reset_std = SB3Policy.load(reset).model.policy.log_std.detach()
+    # one more rollout of updates moves the log std by far less than the 2.0 of the reset
+    assert torch.all(kept_std < -2.6), kept_std
+    assert torch.all((reset_std > -1.3) & (reset_std < -0.7)), reset_std
+    with pytest.raises(ValueError, match="resume_log_std is set but no checkpoint"):
+        train(cfg.replace(resume_log_std=-1.0), tmp_path / "fresh")
+    assert not (tmp_path / "fresh").exists()
+    with pytest.raises(ValueError, match="resume_log_std applies to PPO"):
+        TrainConfig(algorithm="sac", resume_log_std=-1.0)
+
+
 def test_sac_runs(tmp_path):
     cfg = TrainConfig(**{**TINY, "algorithm": "sac", "learning_starts": 100,
                          "batch_size": 64, "buffer_size": 5000, "total_timesteps": 400})
@@ -95,6 +115,7 @@ def test_sac_runs(tmp_path):
     ({"env_fields": {"robots": 5}}, "reserved"),
     ({"env_fields": {"colour": 1}}, "unknown"),
     ({"learning_rate": float("nan")}, "learning_rate must be in"),
+    ({"resume_log_std": 9.0}, r"resume_log_std must be in \[-20"),
 ])
 def test_bad_config_values_are_clear_errors(changes, match):
     with pytest.raises(ValueError, match=match):
