@@ -167,7 +167,7 @@ def test_safe_reward_terms_follow_the_flags():
 def test_cohesion_gap_is_the_distance_beyond_the_threshold():
     pos = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, -2.25], [3.0, 4.0]])
     assert metrics.cohesion_gap(pos, 2.25).tolist() == pytest.approx([0.0, 0.0, 2.75])
-    batch = np.stack([pos, pos + [1.0, 0.0]])  # (T, N, 2): a shift changes nothing
+    batch = np.stack([pos, pos + np.array([1.0, 0.0])])  # (T, N, 2): a shift changes nothing
     np.testing.assert_allclose(metrics.cohesion_gap(batch, 2.25), [[0, 0, 2.75]] * 2)
 
 
@@ -176,7 +176,7 @@ def test_gap_reward_pays_per_metre_beyond_the_cohesion_threshold():
     the reward; zero for followers within the threshold and when the weight is 0."""
     fields = dict(robots=3, init_jitter=0.0, startup_time=100)
     env = parallel_env(reward_gap=4.0, **fields)
-    obs, infos = env.reset(seed=0)
+    _, infos = env.reset(seed=0)
     assert all(i["reward_gap"] == 0.0 for i in infos.values())
     still = {a: np.zeros(2) for a in env.agents}
     _, rew, _, _, info = env.step(still)
