@@ -23,8 +23,8 @@ import numpy as np
 from boids_env import EnvConfig, ScenarioConfig, parallel_env
 from boids_env.config import layout_extent
 from boids_env.policies import ReynoldsPolicy
-from boids_env.scenario import initial_positions
-from boids_env.world import World
+from boids_env.world.scenario import initial_positions
+from boids_env.world.space import World
 
 
 def arena_for(robots: int) -> float:

@@ -19,8 +19,8 @@ from boids_env.checks import flag as _flag
 from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
-from boids_env.layout import follower_cells
-from boids_env.realism import RealismConfig
+from boids_env.world.layout import follower_cells
+from boids_env.world.realism import RealismConfig
 
 FRAMES = ("world", "leader")
 """Observation (and action) frames: the study's world frame, or the leader's heading frame
@@ -314,7 +314,7 @@ class EnvConfig:
     observation: ObservationConfig = field(default_factory=ObservationConfig)
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     realism: RealismConfig = field(default_factory=RealismConfig)
-    """Opt-in ROS/Stage realism (:mod:`boids_env.realism`); off by default."""
+    """Opt-in ROS/Stage realism (:mod:`boids_env.world.realism`); off by default."""
 
     def __post_init__(self) -> None:
         for name, cls in _SECTIONS.items():

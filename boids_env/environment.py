@@ -15,13 +15,14 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from boids_env import metrics, scenario
+from boids_env import metrics
 from boids_env.config import EnvConfig, ScenarioConfig
-from boids_env.leader import ExternalLeader, Leader, make_leader
 from boids_env.observations import Observer
-from boids_env.realism import Realism
 from boids_env.vectors import as_velocities, clip_speed
-from boids_env.world import Snapshot, World
+from boids_env.world import scenario
+from boids_env.world.leader import ExternalLeader, Leader, make_leader
+from boids_env.world.realism import Realism
+from boids_env.world.space import Snapshot, World
 
 AgentID = str
 

@@ -32,9 +32,9 @@ import numpy as np
 
 from boids_env.config import EnvConfig
 from boids_env.files import atomic_path
-from boids_env.layout import follower_cells
 from boids_env.recording import Recording
 from boids_env.rosmsgs import Messages, headings
+from boids_env.world.layout import follower_cells
 
 try:
     from rosbags import rosbag1, rosbag2

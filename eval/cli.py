@@ -11,7 +11,7 @@ from typing import Any
 from boids_env.config import PATHS, PRESETS
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
-from boids_env.realism import REALISMS
+from boids_env.world.realism import REALISMS
 
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
                "shipped PPO followers), learned-study (PPO on the study's reward alone), an "

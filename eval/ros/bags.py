@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from boids_env.config import EnvConfig
-from boids_env.leader import make_leader
 from boids_env.recording import Recording
 from boids_env.vectors import clip_speed
+from boids_env.world.leader import make_leader
 
 
 def topic_counts(path: str | Path) -> dict[str, int]:

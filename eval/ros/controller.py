@@ -44,7 +44,7 @@ from boids_env.eval.ros.protocol import (
 )
 from boids_env.observations import INITIAL_HEADING, Observer
 from boids_env.policies.registry import load_policy, split_preset
-from boids_env.realism import StaleObservations
+from boids_env.world.realism import StaleObservations
 
 SYNC_MODES = ("stamp", "rate")
 FIRST_CONNECTION_WAIT = 1.0

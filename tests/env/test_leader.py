@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from boids_env import parallel_env
-from boids_env.leader import PAPER_SQUARE
+from boids_env.world.leader import PAPER_SQUARE
 
 
 def drive(env, seed=0, exact_speed=True):

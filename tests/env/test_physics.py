@@ -5,7 +5,7 @@ import pytest
 
 from boids_env import parallel_env
 from boids_env.config import WorldConfig
-from boids_env.world import World
+from boids_env.world.space import World
 
 
 def test_robot_reaches_commanded_speed_within_0_2_s_and_holds_it():

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from boids_env import EnvConfig, parallel_env
-from boids_env.realism import PRESETS
+from boids_env.world.realism import PRESETS
 
 
 def run(env, steps, act, seed=0):
@@ -110,7 +110,7 @@ def test_stale_observations_repeat_the_previous_row():
 def test_stale_rows_come_from_the_episode_seed_alone():
     # A ROS controller node builds observations itself and must draw the same stale rows:
     # a StaleObservations of the episode seed, whatever the other mechanisms draw.
-    from boids_env.realism import StaleObservations
+    from boids_env.world.realism import StaleObservations
 
     for extra in ({}, {"timing_jitter": 0.3, "command_noise": 0.05}):
         env = parallel_env(robots=6, stale_observations=0.4, startup_time=0.0, **extra)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from boids_env.config import EnvConfig, ScenarioConfig
-from boids_env.scenario import grid_cells, initial_positions
+from boids_env.world.scenario import grid_cells, initial_positions
 
 PAPER_13 = [(-0.5, -0.5), (-1.0, -0.5), (-0.5, -1.0), (-1.0, -1.0), (-1.5, -1.0), (-1.0, -1.5),
             (0.5, -0.5), (1.0, -0.5), (0.5, -1.0), (1.0, -1.0), (1.5, -1.0), (1.0, -1.5)]

@@ -1,5 +1,5 @@
-"""Initial positions (the study's grids of :mod:`boids_env.layout` plus seeded jitter) and the
-episode's length."""
+"""Initial positions (the study's grids of :mod:`~boids_env.world.layout` plus seeded jitter)
+and the episode's length."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env.config import scene_matrix
-from boids_env.layout import PAPER_LAYOUTS, follower_cells, grid_cells
+from boids_env.world.layout import PAPER_LAYOUTS, follower_cells, grid_cells
 
 if TYPE_CHECKING:
     from boids_env.config import ScenarioConfig
