@@ -11,7 +11,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -19,18 +19,26 @@ from boids_env.checks import flag as _flag
 from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
-from boids_env.world.layout import follower_cells
 from boids_env.world.realism import RealismConfig
+
+# the scenario section and its path constants live with the world; re-exported here, where
+# the other sections are
+from boids_env.world.scenario import (
+    CURVE_SPEED_FACTOR,
+    LEADER_MAX_SPEED,
+    ScenarioConfig,
+    layout_extent,
+    path_extent,
+)
+from boids_env.world.scenario import PATHS as PATHS
+from boids_env.world.scenario import scene_matrix as scene_matrix
+
+if TYPE_CHECKING:
+    from boids_env.world.scene import Scene
 
 FRAMES = ("world", "leader")
 """Observation (and action) frames: the study's world frame, or the leader's heading frame
 (opt-in; see :mod:`boids_env.observations`)."""
-LEADER_MAX_SPEED = 2.0
-"""Fastest leader (m/s): the bound of ``leader_speed`` and of an external leader's command."""
-CURVE_SPEED_FACTOR = 1.5
-"""A curve-following leader may command up to this × ``leader_speed`` to regain its path."""
-PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "external")
-"""Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
 
 
 # The range checks live in boids_env.checks (shared with the realism section); these names are
@@ -60,6 +68,11 @@ class WorldConfig:
     """Physics substeps per control step (fixed step dt / substeps)."""
     collision_slop: float = 0.001
     """pymunk collision slop (m). Its default (0.1) assumes pixels; in metres robots would sink."""
+    scene: str = "arena"
+    """The static world: a built-in scene (``arena``, the study's empty box of side
+    2·``arena_half_size``; ``small_room``, ``doorway``, ``corridor``, ``pillars``, ``lab``), a
+    ROS ``map_server`` YAML or a shapes file (``.toml`` / ``.json``). Choosing one also sets its
+    leader path and start unless given (``map=PATH`` is the same as ``scene=PATH``)."""
 
     def __post_init__(self) -> None:
         _set(self, "arena_half_size", _number("arena_half_size", self.arena_half_size, 0.5, 1000,
@@ -76,98 +89,10 @@ class WorldConfig:
         _set(self, "substeps", _integer("substeps", self.substeps, 1, 1000))
         _set(self, "collision_slop", _number("collision_slop", self.collision_slop, 0.0, 0.01,
                                              unit="m"))
+        from boids_env.world.scenes import load_scene, scene_key
 
-
-@dataclass(frozen=True)
-class ScenarioConfig:
-    """Group size, initial layout, leader path and episode end (DESIGN sections 2 and 6)."""
-
-    robots: int = 13
-    """Group size, the leader included, as the study counts it (study: 7, 13, 19)."""
-    leader_speed: float = 0.55
-    """Leader speed along its path (m/s). Study: 0.5, 0.55 (default), 0.6."""
-    path: str = "square"
-    """Leader path, one of PATHS. ``square`` is the paper's; the others are opt-in."""
-    path_size: float = 4.0
-    """Half extent of the leader path (m). 4.0 gives the paper's square exactly; the circle's
-    diameter, the figure-eight's length and the random waypoints' box scale with it."""
-    path_rotation: float = 0.0
-    """Rotation (degrees, counter-clockwise about the leader's start) of the leader path and of
-    the initial layout: the whole scene turned. 0 is the study's. Opt-in, for robustness."""
-    path_mirror: bool = False
-    """Mirror the leader path and the initial layout in x before the rotation (the square then
-    turns right at its first corner). False is the study's."""
-    waypoints: tuple[tuple[float, float], ...] = ()
-    """Absolute targets (m) for ``path="waypoints"``; ignored by the other paths."""
-    laps: int = 1
-    """Laps of the circle and figure-eight paths."""
-    random_waypoint_count: int = 6
-    """Number of targets drawn for ``path="random_waypoints"``."""
-    arrival_margin: float = 0.1
-    """A leader move ends when within this distance of its target (m). Paper: 0.1 m."""
-    startup_time: float = 2.0
-    """Time (s) the leader waits after reset before moving; the Reynolds followers hold still as
-    long. Paper: 2.0 s."""
-    startup_hold: bool = False
-    """Hold every follower still (command zero) for ``startup_time`` whatever the policy
-    asks, as the study's controller did at its start-up. Off by default: the Reynolds policy
-    holds by itself; learned policies trained with it carry it in their env fields."""
-    tail_time: float = 0.5
-    """Time (s) the episode goes on after the leader finishes its path; 0.5 s makes the paper's
-    case last 74.6 s, the study's T (the leader's own acceleration at the corners and the
-    0.1 s control period add about 1.2 s to the path's nominal 70.9 s)."""
-    max_cycles: int | None = None
-    """Hard step limit (truncation). None: 3× the path's nominal duration, or 1000 steps for the
-    ``external`` leader."""
-    init_jitter: float = 0.05
-    """Half width (m) of the uniform, seeded jitter added to every follower's initial grid
-    position, so that seeds give different runs (the study's runs differed through ROS timing)."""
-    layout_spacing: float = 0.5
-    """Spacing (m) of the initial grid behind the leader. Paper: 0.5 m."""
-
-    def __post_init__(self) -> None:
-        _set(self, "robots", _integer("robots", self.robots, 2, 10_000))
-        _set(self, "leader_speed", _number("leader_speed", self.leader_speed, 0.0,
-                                           LEADER_MAX_SPEED, lo_open=True, unit="m/s"))
-        if self.path not in PATHS:
-            raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
-        _set(self, "path_size", _number("path_size", self.path_size, 0.0, 1000, lo_open=True,
-                                        unit="m"))
-        _set(self, "path_rotation", _number("path_rotation", self.path_rotation, -360, 360,
-                                            unit="degrees"))
-        if not isinstance(self.path_mirror, bool):
-            raise ValueError(f"path_mirror must be True or False, got {self.path_mirror!r}")
-        _set(self, "waypoints", _waypoints(self.waypoints))
-        if self.path == "waypoints" and not self.waypoints:
-            raise ValueError("waypoints must hold at least one (x, y) target when "
-                             "path='waypoints', got ()")
-        _set(self, "laps", _integer("laps", self.laps, 1, 1000))
-        _set(self, "random_waypoint_count",
-             _integer("random_waypoint_count", self.random_waypoint_count, 1, 1000))
-        _set(self, "arrival_margin", _number("arrival_margin", self.arrival_margin, 0.0, 1.0,
-                                             lo_open=True, unit="m"))
-        _set(self, "startup_time", _number("startup_time", self.startup_time, 0.0, 600, unit="s"))
-        if not isinstance(self.startup_hold, bool):
-            raise ValueError(f"startup_hold must be True or False, got {self.startup_hold!r}")
-        _set(self, "tail_time", _number("tail_time", self.tail_time, 0.0, 600, unit="s"))
-        if self.max_cycles is not None:
-            _set(self, "max_cycles", _integer("max_cycles", self.max_cycles, 1, 10**9))
-        _set(self, "init_jitter", _number("init_jitter", self.init_jitter, 0.0, 0.2, unit="m"))
-        _set(self, "layout_spacing", _number("layout_spacing", self.layout_spacing, 0.1, 10,
-                                             unit="m"))
-
-
-def _waypoints(value: Any) -> tuple[tuple[float, float], ...]:
-    try:
-        points = tuple((float(p[0]), float(p[1])) for p in value)
-        if any(len(p) != 2 for p in value):
-            raise ValueError
-    except (TypeError, ValueError, IndexError):
-        raise ValueError(f"waypoints must be a sequence of (x, y) pairs in metres, "
-                         f"got {value!r}") from None
-    if not all(math.isfinite(c) for p in points for c in p):
-        raise ValueError(f"waypoints must be finite, got {value!r}")
-    return points
+        load_scene(self.scene, self.arena_half_size)  # a bad name or file is refused here
+        _set(self, "scene", scene_key(self.scene))
 
 
 @dataclass(frozen=True)
@@ -185,9 +110,23 @@ class ObservationConfig:
     """Std of seeded Gaussian noise added to every observed position (m) and velocity (m/s);
     valid flags and empty slots stay exact. 0 (the study's exact sensing) by default."""
     sense_walls: bool = False
-    """Append a wall slot: the offset (m) to the nearest point of the walls and a valid flag,
-    when a wall is within ``horizon`` (zeros otherwise). Opt-in: the study's followers sensed
-    only robots."""
+    """Append a wall slot: the offset (m) to the nearest point of the walls (any static
+    geometry) and a valid flag, when within ``horizon`` (zeros otherwise). Opt-in: the study's
+    followers sensed only robots. The same as ``static_slots=1``."""
+    static_slots: int | None = None
+    """Static-geometry slots: the nearest point of walls or obstacles within ``static_range``
+    (offset in m, valid flag), then in each further slot the nearest point more than 45° away
+    from the earlier slots' directions. None: 1 with ``sense_walls``, else 0 in the study's
+    empty arena and 4 in any other scene (so every policy, the Reynolds one included, sees the
+    obstacles without a flag)."""
+    static_range: float | None = None
+    """Range (m) of the static slots; None: ``horizon``."""
+    lidar_rays: int = 0
+    """Rays of a range sensor (0: none): distances (m) to walls, obstacles and other robots
+    along rays evenly spaced in the observation's frame, ``lidar_range`` where nothing is hit.
+    Opt-in."""
+    lidar_range: float = 3.0
+    """Range (m) of the range sensor."""
     frame: str = "world"
     """Frame of observations and actions, one of FRAMES: ``world`` (the study's) or
     ``leader`` (x along the leader's heading, y to its left; opt-in, for policies that should
@@ -207,6 +146,17 @@ class ObservationConfig:
                                              lo_open=True, unit="m/s"))
         _set(self, "obs_noise", _number("obs_noise", self.obs_noise, 0.0, 10.0, unit="m, m/s"))
         _set(self, "sense_walls", _flag("sense_walls", self.sense_walls))
+        if self.static_slots is not None:
+            _set(self, "static_slots", _integer("static_slots", self.static_slots, 0, 64))
+            if self.sense_walls and self.static_slots == 0:
+                raise ValueError("sense_walls=True asks for a static slot; static_slots=0 "
+                                 "refuses it (leave static_slots None or >= 1)")
+        if self.static_range is not None:
+            _set(self, "static_range", _number("static_range", self.static_range, 0.0, 100,
+                                               lo_open=True, unit="m"))
+        _set(self, "lidar_rays", _integer("lidar_rays", self.lidar_rays, 0, 1024))
+        _set(self, "lidar_range", _number("lidar_range", self.lidar_range, 0.0, 100,
+                                          lo_open=True, unit="m"))
         _set(self, "relative_actions", _flag("relative_actions", self.relative_actions))
         if self.frame not in FRAMES:
             raise ValueError(f"frame must be one of {FRAMES}, got {self.frame!r}")
@@ -329,17 +279,44 @@ class EnvConfig:
         return cls().replace(**kwargs)
 
     def replace(self, **kwargs: Any) -> EnvConfig:
-        """Returns a copy with the named flat fields changed (validated)."""
+        """Returns a copy with the named flat fields changed (validated). Choosing a
+        ``scene`` (or ``map``, the same field) also sets the scenario fields it defines (its
+        leader path and start) unless they are given too."""
+        if "map" in kwargs:
+            if "scene" in kwargs:
+                raise TypeError("give the scene or the map, not both (map=PATH is scene=PATH)")
+            kwargs = {("scene" if k == "map" else k): v for k, v in kwargs.items()}
         unknown = sorted(set(kwargs) - set(FIELD_OWNER))
         if unknown:
             raise TypeError(f"unknown config field(s) {unknown}; valid fields: "
                             f"{sorted(FIELD_OWNER)}")
+        if "scene" in kwargs:
+            kwargs = {**_scene_defaults(kwargs["scene"], kwargs.get(
+                "arena_half_size", self.world.arena_half_size)), **kwargs}
         changes: dict[str, dict[str, Any]] = {}
         for name, value in kwargs.items():
             changes.setdefault(FIELD_OWNER[name], {})[name] = value
         sections = {sec: dataclasses.replace(getattr(self, sec), **chg)
                     for sec, chg in changes.items()}
         return dataclasses.replace(self, **sections)
+
+    @property
+    def scene(self) -> Scene:
+        """The static scene (walls, obstacles) of ``world.scene``."""
+        from boids_env.world.scenes import load_scene
+
+        return load_scene(self.world.scene, self.world.arena_half_size)
+
+    @property
+    def static_slots(self) -> int:
+        """The number of static-geometry slots in the observations (``static_slots``
+        resolved: see :class:`ObservationConfig`)."""
+        obs = self.observation
+        if obs.static_slots is not None:
+            return obs.static_slots
+        if obs.sense_walls:
+            return 1
+        return 0 if self.world.scene == "arena" else DEFAULT_STATIC_SLOTS
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         """A JSON-ready nested dict (tuples become lists)."""
@@ -358,36 +335,24 @@ class EnvConfig:
             flat.update(section)
         if "waypoints" in flat:
             flat["waypoints"] = tuple(tuple(p) for p in flat["waypoints"])
+        if isinstance(flat.get("start"), list):
+            flat["start"] = tuple(flat["start"])
         return cls.from_kwargs(**flat)
 
 
-def scene_matrix(scenario: ScenarioConfig) -> np.ndarray:
-    """The matrix T (2, 2) of ``path_rotation`` and ``path_mirror``: world = T @ local."""
-    a = math.radians(scenario.path_rotation)
-    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-    return rot @ np.diag([-1.0 if scenario.path_mirror else 1.0, 1.0])
+DEFAULT_STATIC_SLOTS = 4
+"""Static slots in the observations of any scene but the study's arena (``static_slots``)."""
 
 
-def layout_extent(scenario: ScenarioConfig) -> float:
-    """Largest |coordinate| (m) an initial position can take, jitter included."""
-    cells = follower_cells(scenario.robots, scenario.layout_spacing) @ scene_matrix(scenario).T
-    return float(np.abs(cells).max(initial=0.0)) + scenario.init_jitter
+def _scene_defaults(spec: Any, arena_half_size: Any) -> dict[str, Any]:
+    """The scenario fields scene ``spec`` sets (nothing for a spec that does not load: the
+    world section then refuses it by name)."""
+    from boids_env.world.scenes import load_scene
 
-
-def path_extent(scenario: ScenarioConfig) -> float:
-    """Largest |coordinate| (m) the leader's path can reach (0 for an external leader): the
-    corners of the path's bounding box in its own frame, turned into the world."""
-    s = scenario.path_size
-    if scenario.path == "waypoints":
-        points = np.array(scenario.waypoints)
-    elif scenario.path == "external":
-        return 0.0
-    else:
-        box = {"square": (-s, s, -s, s), "random_waypoints": (-s, s, -s, s),
-               "circle": (-s, 0.0, -s / 2, s / 2), "figure_eight": (-s / 2, s / 2, -s, s)}
-        x0, x1, y0, y1 = box[scenario.path]
-        points = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
-    return float(np.abs(points @ scene_matrix(scenario).T).max())
+    try:
+        return dict(load_scene(spec, arena_half_size).defaults)
+    except (ValueError, TypeError):
+        return {}
 
 
 def fastest_speed(config: EnvConfig) -> tuple[float, str]:
@@ -444,9 +409,12 @@ def _check_physics(config: EnvConfig) -> None:
 
 
 def _check_fits(config: EnvConfig) -> None:
-    """Raises ``ValueError`` if the initial layout or the leader path leaves the arena, or the
-    physics cannot hold (see ``_check_physics``)."""
+    """Raises ``ValueError`` if the initial layout or the leader path leaves the arena (or
+    meets an obstacle of the scene), or the physics cannot hold (see ``_check_physics``)."""
     _check_physics(config)
+    if config.world.scene != "arena" or config.scenario.start != (0.0, 0.0):
+        _check_scene(config)
+        return
     half = config.world.arena_half_size
     room = half - config.world.robot_radius
     need = layout_extent(config.scenario)
@@ -465,6 +433,55 @@ def _check_fits(config: EnvConfig) -> None:
             f"{sc.path_rotation:g}°) reaches {reach:.2f} m: path_size / waypoints must keep it "
             f"below {room - sc.arrival_margin:.2f} m (arena_half_size={half} minus "
             f"robot_radius and arrival_margin)")
+
+
+def _check_scene(config: EnvConfig) -> None:
+    """The start layout and the leader's path checked against the scene: every robot starts
+    more than its radius plus the jitter from static geometry, and every leg of the path
+    keeps a robot radius from obstacles (and its arrival margin more from the box's walls)."""
+    from boids_env.world.leader import preview_path
+    from boids_env.world.scenario import initial_positions, layout_heading
+
+    sc, w = config.scenario, config.world
+    scene = config.scene
+    path = preview_path(sc, w.dt)
+    cells = initial_positions(sc, None, layout_heading(sc, w.scene, path))
+    need = w.robot_radius + sc.init_jitter * math.sqrt(2)
+    clear = scene.clearance(cells)
+    bad = np.flatnonzero(clear <= need)
+    if bad.size:
+        k = int(bad[0])
+        who = "the leader" if k == 0 else f"follower {k}"
+        raise ValueError(
+            f"the start does not fit scene {scene.name!r}: {who} would start at "
+            f"({cells[k][0]:.2f}, {cells[k][1]:.2f}), {max(clear[k], 0.0):.3f} m from "
+            f"{scene.nearest_name(cells[k])}; it needs more than {need:.3f} m (robot_radius + "
+            f"init_jitter·√2): change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, "
+            f"layout_spacing ({sc.layout_spacing:g} m) or robots ({sc.robots})")
+    if path is None:
+        return
+    blocked, which = scene.blocked(path[:-1], path[1:], w.robot_radius)
+    if scene.box is not None:
+        margin = w.robot_radius + sc.arrival_margin
+        near_box = scene.box_clearance(path) <= margin
+        if near_box.any():
+            k = int(np.argmax(near_box))
+            raise ValueError(
+                f"the leader path '{sc.path}' reaches ({path[k][0]:.2f}, {path[k][1]:.2f}), "
+                f"within {margin:.3f} m (robot_radius + arrival_margin) of "
+                f"{scene.box_wall_name(path[k:k + 1], margin + 1e-9)} of scene "
+                f"{scene.name!r}: keep its waypoints / path_size inside")
+    if blocked.any():
+        k = int(np.argmax(blocked))
+        a, b = path[k], path[k + 1]
+        leg = (f"leg {k + 1} from ({a[0]:.2f}, {a[1]:.2f}) to ({b[0]:.2f}, {b[1]:.2f})"
+               if sc.path in ("square", "waypoints") else
+               f"the part near ({a[0]:.2f}, {a[1]:.2f})")
+        obstacle = scene.names[which[k]] if which[k] >= 0 else "an occupied map cell"
+        raise ValueError(
+            f"the leader path '{sc.path}' of scene {scene.name!r}: {leg} crosses or passes "
+            f"closer than robot_radius ({w.robot_radius:g} m) to {obstacle}; change the "
+            f"waypoints, path, path_size, path_rotation or start")
 
 
 @dataclass(frozen=True)
@@ -490,8 +507,30 @@ class ReynoldsParams:
     """Control period (s)."""
     startup_time: float = 2.0
     """Zero command for this long after reset (s)."""
+    obstacle_avoidance: bool | None = None
+    """Steer away from walls and obstacles (not in the study). None: on whenever the env's
+    scene is not the study's empty arena and its observations carry static slots (the policy
+    learns both from :meth:`~boids_env.policies.ReynoldsPolicy.bind`), off in the arena, so
+    the study's numbers stay exact."""
+    obstacle_weight: float = 1.0
+    """Weight of the obstacle-avoidance force. It is served first: the other rules share
+    what is left of ``max_force`` (Reynolds' prioritised acceleration allocation)."""
+    obstacle_distance: float = 0.4
+    """Centre-to-surface distance (m) within which an obstacle pushes a follower away, at
+    full strength at contact; shortened by the follower's approach speed × lookahead."""
+    obstacle_lookahead: float = 1.0
+    """Look-ahead time (s): approaching an obstacle at speed u counts as being u × lookahead
+    closer to it, so a fast follower starts braking earlier."""
 
     def __post_init__(self) -> None:
+        if self.obstacle_avoidance is not None:
+            _set(self, "obstacle_avoidance", _flag("obstacle_avoidance",
+                                                   self.obstacle_avoidance))
+        _set(self, "obstacle_weight", _number("obstacle_weight", self.obstacle_weight, 0.0, 100))
+        _set(self, "obstacle_distance", _number("obstacle_distance", self.obstacle_distance,
+                                                0.0, 10, lo_open=True, unit="m"))
+        _set(self, "obstacle_lookahead", _number("obstacle_lookahead", self.obstacle_lookahead,
+                                                 0.0, 60, unit="s"))
         for name in ("separation_weight", "cohesion_weight", "alignment_weight",
                      "leader_weight"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 100))

@@ -16,12 +16,13 @@ from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from boids_env import metrics
-from boids_env.config import EnvConfig, ScenarioConfig
+from boids_env.config import EnvConfig
 from boids_env.observations import Observer
 from boids_env.vectors import as_velocities, clip_speed
 from boids_env.world import scenario
-from boids_env.world.leader import ExternalLeader, Leader, make_leader
+from boids_env.world.leader import ExternalLeader, Leader, make_leader, preview_path, redraw_clear
 from boids_env.world.realism import Realism
+from boids_env.world.scenario import ScenarioConfig
 from boids_env.world.space import Snapshot, World
 
 AgentID = str
@@ -128,16 +129,15 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._observer = Observer(self.config)
         self.layout = self._observer.layout
         # one Box object per agent (seeding one agent's space must not reseed the others')
-        self.observation_spaces = {
-            a: self.layout.space(world.arena_half_size, obs_cfg.horizon, obs_cfg.velocity_bound)
-            for a in self.possible_agents}
+        self.observation_spaces = {a: self._observer.make_space() for a in self.possible_agents}
         bound = world.max_speed * (2.0 if obs_cfg.relative_actions else 1.0)
         self.action_spaces = {a: spaces.Box(-bound, bound, (2,), np.float32)
                               for a in self.possible_agents}
-        h, vb = world.arena_half_size, obs_cfg.velocity_bound
+        x0, y0, x1, y1 = self.config.scene.bounds
+        vb = obs_cfg.velocity_bound
         self.state_space = spaces.Box(
-            np.concatenate([np.full(2 * n, -h), np.full(2 * n, -vb)]).astype(np.float32),
-            np.concatenate([np.full(2 * n, h), np.full(2 * n, vb)]).astype(np.float32),
+            np.concatenate([np.tile([x0, y0], n), np.full(2 * n, -vb)]).astype(np.float32),
+            np.concatenate([np.tile([x1, y1], n), np.full(2 * n, vb)]).astype(np.float32),
             dtype=np.float32)
         self._rng: np.random.Generator | None = None
         self._world: World | None = None
@@ -185,9 +185,14 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self._rng = np.random.default_rng()
         self.episode_config = episode
         sc, wc = episode.scenario, episode.world
-        self._initial_positions = scenario.initial_positions(sc, self._rng)
+        scene = episode.scene
+        self._initial_positions = scenario.initial_positions(
+            sc, self._rng, scenario.layout_heading(sc, wc.scene, preview_path(sc, wc.dt)))
         self._leader = make_leader(sc, self._rng, wc.dt)
-        self._world = World(wc, self._initial_positions)
+        if sc.path == "random_waypoints" and not scene.is_empty_box:
+            self._leader = redraw_clear(sc, scene, wc.robot_radius, self._leader, self._rng,
+                                        wc.dt)
+        self._world = World(wc, self._initial_positions, scene)
         self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
         self._tail_steps = round(sc.tail_time / wc.dt)
         self._finish_step: int | None = None
@@ -321,10 +326,10 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if not scale.any():
             return np.zeros((3, len(positions) - 1))
         cfg = self.episode_config
+        wall = max(cfg.metrics.wall_distance, cfg.world.robot_radius + metrics.CONTACT_TOLERANCE)
         flags = metrics.safety_flags(positions, cfg.world.robot_radius,
-                                     cfg.world.arena_half_size, cfg.metrics.safety_distance,
-                                     max(cfg.metrics.wall_distance, cfg.world.robot_radius
-                                         + metrics.CONTACT_TOLERANCE))
+                                     cfg.metrics.safety_distance,
+                                     cfg.scene.within(positions[1:], wall))
         return scale * np.stack([flags[name] for name in metrics.SAFETY_FLAGS])
 
     def _gap_term(self, positions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:

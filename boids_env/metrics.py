@@ -27,6 +27,7 @@ from scipy.spatial import cKDTree
 
 if TYPE_CHECKING:
     from boids_env.config import MetricsConfig
+    from boids_env.world.scene import Scene
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -36,8 +37,8 @@ CONTACT_TOLERANCE = 0.001
 """Two robots (or a robot and a wall) closer than touching + this (m) count as in contact:
 pymunk's collision slop lets rigid contacts overlap by about ``collision_slop``."""
 SAFETY_KEYS = ("touching_fraction", "mean_contact_pairs", "contacts_follower",
-               "contacts_leader", "wall_fraction", "mean_nn_distance",
-               "leader_path_deviation", "leader_path_deviation_max")
+               "contacts_leader", "wall_fraction", "min_clearance", "no_sight_fraction",
+               "mean_nn_distance", "leader_path_deviation", "leader_path_deviation_max")
 """The safety metrics of :func:`safety_metrics`, in report order."""
 SAFETY_FLAGS = ("proximity", "contact", "wall")
 """Per-follower, per-step safety flags (:func:`safety_flags`), in reward order."""
@@ -203,10 +204,23 @@ def _pair_stats(pos: FloatArray, touch: float) -> dict[str, float]:
     return stats
 
 
-def safety_metrics(positions: FloatArray, radius: float, arena_half_size: float,
+def safety_metrics(positions: FloatArray, radius: float,
+                   static_contact: BoolArray | None = None,
                    leader_path: FloatArray | None = None,
-                   tolerance: float = CONTACT_TOLERANCE) -> dict[str, float]:
+                   tolerance: float = CONTACT_TOLERANCE, *,
+                   clearance: FloatArray | None = None,
+                   sight: BoolArray | None = None) -> dict[str, float]:
     """Safety of an episode's samples (T, N, 2), the leader first.
+
+    Args:
+        positions: (T, N, 2) samples.
+        radius: the robots' radius (m).
+        static_contact: (T, N) whether each robot touches static geometry (walls or
+            obstacles); None: no wall metrics.
+        leader_path: the leader's scripted path as a polyline (M, 2).
+        tolerance: contact tolerance (m).
+        clearance: (T, N) distance (m) from each robot's centre to static geometry.
+        sight: (T, N-1) whether each follower sees the leader (no static geometry between).
 
     Returns:
         ``touching_fraction``: fraction of samples in which some pair of robots (the leader
@@ -214,11 +228,14 @@ def safety_metrics(positions: FloatArray, radius: float, arena_half_size: float,
         ``contacts_follower`` / ``contacts_leader``: contact onsets between two followers /
         between the leader and a follower (a pair that starts touching counts once, a pair
         touching in the first sample included); ``wall_fraction``: fraction of samples in which
-        some robot touches a wall; ``mean_nn_distance``: centre distance (m) from each robot to
-        its nearest other robot, averaged over robots and samples; ``min_distance``: the
-        smallest centre distance between two robots (m);
-        ``leader_path_deviation`` / ``_max``: the leader's mean / largest distance (m) from its
-        scripted path ``leader_path`` (a polyline (M, 2); NaN when not given).
+        some robot touches static geometry; ``min_clearance``: the smallest distance (m) from
+        any robot's edge to static geometry over the episode; ``no_sight_fraction``: the
+        followers' mean fraction of samples with a wall or obstacle between them and the
+        leader; ``mean_nn_distance``: centre distance (m) from each robot to its nearest other
+        robot, averaged over robots and samples; ``min_distance``: the smallest centre
+        distance between two robots (m); ``leader_path_deviation`` / ``_max``: the leader's
+        mean / largest distance (m) from its scripted path ``leader_path`` (NaN when not
+        given).
     """
     pos = np.asarray(positions, dtype=float)
     steps, n = pos.shape[:2]
@@ -227,8 +244,12 @@ def safety_metrics(positions: FloatArray, radius: float, arena_half_size: float,
     out["min_distance"] = nan
     if steps == 0:
         return out
-    reach = arena_half_size - radius - tolerance
-    out["wall_fraction"] = float(np.any(np.abs(pos) >= reach, axis=(1, 2)).mean())
+    if static_contact is not None:
+        out["wall_fraction"] = float(np.any(static_contact, axis=1).mean())
+    if clearance is not None:
+        out["min_clearance"] = float(np.min(clearance) - radius)
+    if sight is not None and sight.size:
+        out["no_sight_fraction"] = float((~np.asarray(sight)).mean())
     if n > 1:
         stats = _pair_stats(pos, 2 * radius + tolerance)
         out.update(touching_fraction=stats["touching"] / steps,
@@ -261,23 +282,22 @@ def path_deviation(points: FloatArray, path: FloatArray) -> FloatArray:
     return best
 
 
-def safety_flags(positions: FloatArray, radius: float, arena_half_size: float,
-                 safety_distance: float, wall_distance: float | None = None,
-                 tolerance: float = CONTACT_TOLERANCE) -> dict[str, BoolArray]:
+def safety_flags(positions: FloatArray, radius: float, safety_distance: float,
+                 near_static: BoolArray, tolerance: float = CONTACT_TOLERANCE
+                 ) -> dict[str, BoolArray]:
     """Per-follower safety flags at one instant (N, 2), the leader first: ``proximity``
     (centre distance to some other robot, the leader included, below ``safety_distance``),
-    ``contact`` (touching some other robot) and ``wall`` (centre closer than
-    ``wall_distance`` to a wall; None: touching one); each (N-1,)."""
+    ``contact`` (touching some other robot) and ``wall`` (``near_static``: the follower's
+    centre near static geometry, as the caller measured it); each (N-1,)."""
     pos = np.asarray(positions, dtype=float)
     n = len(pos)
     if n > 1:
         nearest = cKDTree(pos).query(pos[1:], k=2)[0][:, 1]
     else:  # pragma: no cover - an env always has a follower
         nearest = np.zeros(0)
-    reach = arena_half_size - (radius + tolerance if wall_distance is None else wall_distance)
     return {"proximity": nearest < safety_distance,
             "contact": nearest < 2 * radius + tolerance,
-            "wall": np.any(np.abs(pos[1:]) >= reach, axis=1)}
+            "wall": np.asarray(near_static, dtype=bool)}
 
 
 def cohesion_gap(positions: FloatArray, cohesion_threshold: float) -> FloatArray:
@@ -303,7 +323,7 @@ def leader_distance(positions: FloatArray) -> FloatArray:
 
 def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: FloatArray,
                     config: MetricsConfig, dt: float, robot_radius: float,
-                    arena_half_size: float = 5.0, leader_path: FloatArray | None = None
+                    scene: Scene | None = None, leader_path: FloatArray | None = None
                     ) -> dict[str, object]:
     """Everything reported for one episode, from its sampled arrays.
 
@@ -313,16 +333,22 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         config: thresholds and flags.
         dt: sampling period (s).
         robot_radius: for contacts (m).
-        arena_half_size: for wall contacts (m).
+        scene: the static scene, for wall contact, clearance and line of sight (None: the
+            study's 10 m arena).
         leader_path: the leader's scripted path as a polyline (M, 2), for its deviation.
 
     Returns:
         ``V_sep``, ``V_coh``, ``V_align``, the per-follower ``count_*`` lists,
         ``V_align_unwrapped`` and ``count_align_unwrapped`` (the study's unwrapped rule),
         ``duration`` (T, s), ``steps``, ``min_distance`` (m), ``collisions``,
-        ``polarization`` (episode mean), ``mean_leader_distance`` (m), and the safety
-        metrics of :func:`safety_metrics` (``SAFETY_KEYS``).
+        ``polarization`` (episode mean), ``mean_leader_distance`` (m), the safety
+        metrics of :func:`safety_metrics` (``SAFETY_KEYS``) and ``no_sight`` (each
+        follower's fraction of time without line of sight to the leader).
     """
+    if scene is None:
+        from boids_env.world.scenes import arena
+
+        scene = arena()
     flags = flags_for(config, positions, commanded)
     out: dict[str, object] = dict(episode_violations(flags))
     out.update({k: v.tolist() for k, v in violation_counts(flags).items()})
@@ -334,9 +360,26 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
     out["duration"] = float(positions.shape[0] * dt)
     out["polarization"] = float(polarization(velocities).mean())
     out["mean_leader_distance"] = float(leader_distance(positions).mean())
-    safety = safety_metrics(positions, robot_radius, arena_half_size, leader_path)
+    pos = np.asarray(positions, dtype=float)
+    sight = line_of_sight(pos, scene)
+    safety = safety_metrics(pos, robot_radius, scene.within(pos, robot_radius,
+                                                            CONTACT_TOLERANCE),
+                            leader_path, clearance=scene.clearance(pos), sight=sight)
     out["min_distance"] = safety.pop("min_distance")
     # every contact onset, follower-follower and leader-follower (collision_count's number)
     out["collisions"] = int(safety["contacts_follower"] + safety["contacts_leader"])
     out.update(safety)
+    out["no_sight"] = (~sight).mean(axis=0).tolist() if sight.size else []
     return out
+
+
+def line_of_sight(positions: FloatArray, scene: Scene) -> BoolArray:
+    """Whether each follower sees the leader at each sample (no wall or obstacle crosses the
+    segment between their centres): (T, N, 2) -> (T, N-1). The box's walls never block."""
+    pos = np.asarray(positions, dtype=float)
+    steps, n = pos.shape[:2]
+    if scene.is_empty_box or n < 2:
+        return np.ones((steps, max(n - 1, 0)), dtype=bool)
+    leader = np.broadcast_to(pos[:, :1], pos[:, 1:].shape).reshape(-1, 2)
+    blocked, _ = scene.blocked(leader, pos[:, 1:].reshape(-1, 2), use_grid=False)
+    return ~blocked.reshape(steps, n - 1)

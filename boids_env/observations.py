@@ -34,6 +34,9 @@ import numpy.typing as npt
 from gymnasium import spaces
 from scipy.spatial import cKDTree
 
+from boids_env.world import geometry as geo
+from boids_env.world.scene import Scene
+
 if TYPE_CHECKING:
     from boids_env.config import EnvConfig
 
@@ -52,47 +55,117 @@ KD_TREE_MIN_ROBOTS = 96
 (measured: all-pairs wins below about 100 robots)."""
 
 
+BLOCKS = ("own_velocity", "leader_position", "leader_velocity", "neighbours", "static", "lidar")
+"""The observation's blocks, in the order they appear (empty blocks are left out)."""
+
+
 @dataclass(frozen=True)
 class ObservationLayout:
-    """Named slices into one follower's observation vector, and views of a batch of them."""
+    """Named blocks of one follower's observation vector, and views of a batch of them.
+
+    The layout is an explicit list of blocks (:attr:`blocks`), saved with every trained model
+    (``boids.json``), never guessed from a vector's length once sensing goes beyond the
+    study's (:meth:`for_size` reads only the study-era sizes).
+    """
 
     neighbours: int
-    """K, the number of neighbour slots."""
-    walls: bool = False
-    """Whether the wall slot follows the neighbour slots (``sense_walls``)."""
+    """K, the number of neighbour slots (5 values each)."""
+    static: int = 0
+    """M, the number of static-geometry slots (3 values each: offset to the nearest point of
+    walls or obstacles, valid flag). The study-era ``sense_walls`` is one slot."""
+    lidar: int = 0
+    """R, the number of range-sensor rays (1 value each: distance in m)."""
 
     own_velocity = slice(0, 2)
     leader_position = slice(2, 4)
     leader_velocity = slice(4, 6)
     neighbours_start = 6
 
+    def __post_init__(self) -> None:
+        for name in ("neighbours", "static", "lidar"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+                raise ValueError(f"ObservationLayout {name} must be a non-negative integer, "
+                                 f"got {value!r}")
+
+    @property
+    def blocks(self) -> tuple[tuple[str, int], ...]:
+        """``(name, size)`` of every non-empty block, in order."""
+        sizes = {"own_velocity": 2, "leader_position": 2, "leader_velocity": 2,
+                 "neighbours": SLOT_SIZE * self.neighbours, "static": WALL_SIZE * self.static,
+                 "lidar": self.lidar}
+        return tuple((name, sizes[name]) for name in BLOCKS if sizes[name])
+
+    @classmethod
+    def from_blocks(cls, blocks: object) -> ObservationLayout:
+        """The layout of a saved block list (``[[name, size], ...]``, as :attr:`blocks`);
+        ``ValueError`` for anything that is not one."""
+        try:
+            named = {str(name): int(size) for name, size in blocks}  # type: ignore[attr-defined]
+            pairs = [(str(n), int(s)) for n, s in blocks]  # type: ignore[attr-defined]
+        except (TypeError, ValueError):
+            raise ValueError(f"an observation layout is a list of [name, size] pairs, got "
+                             f"{blocks!r}") from None
+        layout = cls(named.get("neighbours", 0) // SLOT_SIZE, named.get("static", 0) // WALL_SIZE,
+                     named.get("lidar", 0))
+        if list(layout.blocks) != pairs:
+            raise ValueError(f"not an observation layout: {pairs!r} (blocks, in order: "
+                             f"{list(BLOCKS)}; neighbours 5 per slot, static 3 per slot)")
+        return layout
+
     @property
     def size(self) -> int:
         """Length of one observation vector."""
-        return self.neighbours_start + SLOT_SIZE * self.neighbours + WALL_SIZE * self.walls
+        return sum(size for _, size in self.blocks)
+
+    def block(self, name: str) -> slice:
+        """The slice of block ``name``; ``ValueError`` if this layout has no such block."""
+        start = 0
+        for block, size in self.blocks:
+            if block == name:
+                return slice(start, start + size)
+            start += size
+        raise ValueError(f"this observation layout has no {name!r} block (blocks: "
+                         f"{[b for b, _ in self.blocks]})")
+
+    @property
+    def walls(self) -> bool:
+        """Whether the observation has static-geometry slots (the study-era wall slot)."""
+        return self.static > 0
 
     @property
     def wall(self) -> slice:
-        """The wall slot: offset (2) to the nearest point of the walls, valid flag (1)."""
-        if not self.walls:
-            raise ValueError("this layout has no wall slot (sense_walls=False)")
-        return slice(self.size - WALL_SIZE, self.size)
+        """The first static slot: offset (2) to the nearest point of static geometry, valid
+        flag (1) (the study-era ``sense_walls`` slot)."""
+        if not self.static:
+            raise ValueError("this layout has no wall slot (sense_walls=False, static_slots=0)")
+        start = self.block("static").start
+        return slice(start, start + WALL_SIZE)
 
     @classmethod
     def for_size(cls, size: int) -> ObservationLayout:
-        """The layout of an observation vector of ``size`` (a wall slot of 3 never divides
-        into the 5-wide neighbour slots, so the size tells both)."""
+        """The layout of a study-era observation vector of ``size``: neighbour slots and at
+        most one wall slot (a wall slot of 3 never divides into the 5-wide neighbour slots).
+        Layouts with more static slots or a range sensor must be given (:meth:`from_blocks`,
+        or the env's ``layout``)."""
         rest = size - cls.neighbours_start
         walls = rest % SLOT_SIZE == WALL_SIZE
         if rest < 0 or rest % SLOT_SIZE not in (0, WALL_SIZE):
-            raise ValueError(f"no observation layout has size {size}")
-        return cls((rest - WALL_SIZE * walls) // SLOT_SIZE, walls)
+            raise ValueError(f"no study-era observation layout has size {size}; give the "
+                             f"layout explicitly (e.g. policy.bind(env))")
+        return cls((rest - WALL_SIZE * walls) // SLOT_SIZE, int(walls))
 
     def slots(self, obs: FloatArray) -> FloatArray:
         """View of the neighbour slots of a batch ``(..., size)`` as ``(..., K, 5)``."""
         end = self.neighbours_start + SLOT_SIZE * self.neighbours
         return obs[..., self.neighbours_start:end].reshape(*obs.shape[:-1], self.neighbours,
                                                            SLOT_SIZE)
+
+    def static_slots(self, obs: FloatArray) -> FloatArray:
+        """View of the static slots of a batch ``(..., size)`` as ``(..., M, 3)``: offset to
+        the surface point (2), valid flag (1)."""
+        block = self.block("static") if self.static else slice(0, 0)
+        return obs[..., block].reshape(*obs.shape[:-1], self.static, WALL_SIZE)
 
     @staticmethod
     def slot_position(slots: FloatArray) -> FloatArray:
@@ -109,20 +182,27 @@ class ObservationLayout:
         """Valid flags ``(..., K)`` (1.0 for a real neighbour) of slots from :meth:`slots`."""
         return slots[..., 4]
 
-    def space(self, arena_half_size: float, horizon: float, velocity_bound: float) -> spaces.Box:
-        """The observation Box: finite bounds, float32."""
+    def space(self, reach: float, horizon: float, velocity_bound: float,
+              static_range: float | None = None, lidar_range: float = 0.0) -> spaces.Box:
+        """The observation Box: finite bounds, float32. ``reach`` bounds the leader's
+        relative position (twice the arena's half size: the scene's span)."""
         low = np.empty(self.size, dtype=np.float32)
         low[self.own_velocity] = -velocity_bound
-        low[self.leader_position] = -2 * arena_half_size
+        low[self.leader_position] = -reach
         low[self.leader_velocity] = -velocity_bound
         slot_low = np.array([-horizon, -horizon, -velocity_bound, -velocity_bound, 0.0])
         end = self.neighbours_start + SLOT_SIZE * self.neighbours
         low[self.neighbours_start:end] = np.tile(slot_low, self.neighbours)
         high = -low
         high[self.neighbours_start + 4 : end : SLOT_SIZE] = 1.0
-        if self.walls:
-            low[self.wall] = [-horizon, -horizon, 0.0]
-            high[self.wall] = [horizon, horizon, 1.0]
+        if self.static:
+            r = horizon if static_range is None else static_range
+            block = self.block("static")
+            low[block] = np.tile([-r, -r, 0.0], self.static)
+            high[block] = np.tile([r, r, 1.0], self.static)
+        if self.lidar:
+            low[self.block("lidar")] = 0.0
+            high[self.block("lidar")] = lidar_range
         return spaces.Box(low, high, dtype=np.float32)
 
 
@@ -183,10 +263,35 @@ def rotation(heading: float) -> npt.NDArray[np.float64]:
     return np.array([[c, -s], [s, c]])
 
 
+@dataclass(frozen=True)
+class Sensors:
+    """What the sensors beyond the study's see: static geometry and the range sensor."""
+
+    scene: Scene | None = None
+    """The static scene (None: no static slots or lidar can be filled)."""
+    static_range: float = 1.0
+    """Static slots hold surface points within this distance (m)."""
+    lidar_range: float = 3.0
+    """Range (m) of the lidar; a ray that hits nothing reads this."""
+    robot_radius: float = 0.036
+    """Robots are discs of this radius for the lidar (m)."""
+
+
+LIDAR_ROBOTS = 32
+"""The lidar sees the nearest this-many other robots within its range (rays hit their discs)."""
+
+
+def lidar_directions(rays: int) -> FloatArray:
+    """Unit vectors (R, 2) of ``rays`` rays evenly spaced from the frame's x axis,
+    counter-clockwise."""
+    angles = [2 * math.pi * k / rays for k in range(rays)]
+    return np.array([[math.cos(a), math.sin(a)] for a in angles]).reshape(-1, 2)
+
+
 def build_observations(positions: FloatArray, velocities: FloatArray, layout: ObservationLayout,
-                       horizon: float, velocity_bound: float, arena_half_size: float,
-                       frame: npt.NDArray[np.float64] | None = None
-                       ) -> npt.NDArray[np.float32]:
+                       horizon: float, velocity_bound: float, reach: float,
+                       frame: npt.NDArray[np.float64] | None = None,
+                       sensors: Sensors | None = None) -> npt.NDArray[np.float32]:
     """Observations of every follower, one row each: ``(N-1, layout.size)`` float32.
 
     Args:
@@ -195,9 +300,10 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         layout: the observation layout (K slots).
         horizon: neighbour radius (m).
         velocity_bound: velocities are clipped to ±this (m/s), keeping obs inside the Box.
-        arena_half_size: bounds the leader's relative position.
+        reach: bounds the leader's relative position (m; the scene's span).
         frame: a :func:`rotation` matrix; every vector is expressed in that frame (None: the
             world frame).
+        sensors: the scene and ranges for the static slots and the lidar.
     """
     n = len(positions)
     followers = n - 1
@@ -215,7 +321,6 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
     table[:n, 4] = 1.0
     obs = np.empty((followers, layout.size), dtype=np.float32)
     obs[:, layout.own_velocity] = table[1:n, 2:4]
-    reach = 2 * arena_half_size
     obs[:, layout.leader_position] = np.clip(positions[0] - positions[1:], -reach, reach)
     obs[:, layout.leader_velocity] = table[0, 2:4]
     if layout.neighbours:
@@ -225,23 +330,52 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         gathered[..., 0:2] -= positions[1:, None, :] * gathered[..., 4:5]
         end = layout.neighbours_start + SLOT_SIZE * layout.neighbours
         obs[:, layout.neighbours_start:end] = gathered.reshape(followers, -1)
-    if layout.walls:
-        offset = nearest_wall(world_positions[1:], arena_half_size)
-        near = np.linalg.norm(offset, axis=1) <= horizon
-        if frame is not None:
-            offset = offset @ frame
-        obs[:, layout.wall] = np.column_stack([offset * near[:, None], near])
+    if layout.static or layout.lidar:
+        if sensors is None or sensors.scene is None:
+            raise ValueError("static slots and the lidar need the scene (Sensors)")
+        if layout.static:
+            obs[:, layout.block("static")] = _static_block(world_positions[1:], layout.static,
+                                                           sensors, frame)
+        if layout.lidar:
+            obs[:, layout.block("lidar")] = _lidar_block(world_positions, layout.lidar,
+                                                         sensors, frame)
     return obs
 
 
-def nearest_wall(positions: FloatArray, arena_half_size: float) -> FloatArray:
-    """Offset (m) from each position (F, 2) to the nearest point of the square arena's walls
-    (their inner faces at ±arena_half_size): along one axis, towards the closest wall."""
-    gaps = np.concatenate([arena_half_size - positions, arena_half_size + positions], axis=1)
-    side = np.argmin(gaps, axis=1)  # 0: +x wall, 1: +y, 2: -x, 3: -y
-    distance = gaps[np.arange(len(positions)), side]
-    direction = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])[side]
-    return direction * distance[:, None]
+def _static_block(points: FloatArray, slots: int, sensors: Sensors,
+                  frame: npt.NDArray[np.float64] | None) -> FloatArray:
+    """(F, 3·M): the static slots of every follower (offsets in the frame, valid flags)."""
+    assert sensors.scene is not None
+    offsets, valid = sensors.scene.nearest_points(points, slots, sensors.static_range)
+    if frame is not None:
+        offsets = offsets @ frame
+    block = np.concatenate([offsets * valid[..., None], valid[..., None]], axis=2)
+    return block.reshape(len(points), -1)
+
+
+def _lidar_block(positions: FloatArray, rays: int, sensors: Sensors,
+                 frame: npt.NDArray[np.float64] | None) -> FloatArray:
+    """(F, R): each follower's ranges (m) to static geometry and other robots, rays evenly
+    spaced in the observation's frame."""
+    assert sensors.scene is not None
+    directions = lidar_directions(rays)
+    if frame is not None:
+        directions = directions @ frame.T  # the frame's axes in the world
+    origins = positions[1:]
+    dirs = np.broadcast_to(directions, (len(origins), rays, 2))
+    ranges = sensors.scene.raycast(origins, dirs, sensors.lidar_range)
+    k = min(LIDAR_ROBOTS, len(positions) - 1)
+    if k:
+        index, _ = nearest_neighbours(positions, sensors.lidar_range + sensors.robot_radius, k)
+        centres = np.where((index >= 0)[..., None], positions[np.maximum(index, 0)], FAR_AWAY)
+        hit = geo.ray_circles(origins[:, None, None, :], dirs[:, :, None, :],
+                              centres[:, None, :, :], np.full(1, sensors.robot_radius))
+        ranges = np.minimum(ranges, hit.min(axis=2))
+    return np.minimum(ranges, sensors.lidar_range)
+
+
+FAR_AWAY = 1e9
+"""Where an empty neighbour entry of the lidar puts its disc (never hit)."""
 
 
 class Observer:
@@ -256,13 +390,25 @@ class Observer:
     """
 
     def __init__(self, config: EnvConfig) -> None:
-        obs, world = config.observation, config.world
+        obs = config.observation
         self.config = config
-        self.layout = ObservationLayout(obs.neighbours, obs.sense_walls)
-        self.space = self.layout.space(world.arena_half_size, obs.horizon, obs.velocity_bound)
+        self.layout = layout_of(config)
+        scene = config.scene
+        static_range = obs.horizon if obs.static_range is None else obs.static_range
+        self.reach = scene.span
+        self.sensors = Sensors(scene, static_range, obs.lidar_range, config.world.robot_radius)
+        self.space = self.layout.space(self.reach, obs.horizon, obs.velocity_bound,
+                                       static_range, obs.lidar_range)
         self.heading = INITIAL_HEADING
         self._rng: np.random.Generator | None = None
         self._leader_velocity: npt.NDArray[np.float64] | None = None
+
+    def make_space(self) -> spaces.Box:
+        """A new observation Box (one object per agent: seeding one must not reseed
+        another's)."""
+        obs = self.config.observation
+        return self.layout.space(self.reach, obs.horizon, obs.velocity_bound,
+                                 self.sensors.static_range, obs.lidar_range)
 
     def reset(self, rng: np.random.Generator | None = None,
               heading: float = INITIAL_HEADING) -> None:
@@ -293,29 +439,40 @@ class Observer:
                  ) -> npt.NDArray[np.float32]:
         """Observations (N-1, size) of the robots' positions and velocities (N, 2), leader
         first. In the leader frame the heading first follows the leader's velocity."""
-        cfg, world = self.config.observation, self.config.world
+        cfg = self.config.observation
         if cfg.frame == "leader":
             vx, vy = float(velocities[0][0]), float(velocities[0][1])
             if math.hypot(vx, vy) >= HEADING_MIN_SPEED:
                 self.heading = math.atan2(vy, vx)
         obs = build_observations(positions, velocities, self.layout, cfg.horizon,
-                                 cfg.velocity_bound, world.arena_half_size, self.frame)
+                                 cfg.velocity_bound, self.reach, self.frame, self.sensors)
         if cfg.obs_noise > 0:
             if self._rng is None:
                 raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")
-            noise = self._rng.normal(0.0, cfg.obs_noise, obs.shape)
-            slots = self.layout.slots(noise)
-            valid = self.layout.slot_valid(self.layout.slots(obs))
-            slots[..., :4] *= valid[..., None]
-            slots[..., 4] = 0.0
-            if self.layout.walls:
-                wall = noise[:, self.layout.wall]
-                wall[:, :2] *= obs[:, self.layout.wall][:, 2:3]
-                wall[:, 2] = 0.0
-                noise[:, self.layout.wall] = wall
-            obs = obs + noise
+            obs = obs + self._noise(obs, cfg.obs_noise)
         if cfg.obs_noise > 0 or cfg.frame != "world":
             obs = np.clip(obs, self.space.low, self.space.high).astype(np.float32)
         if cfg.relative_actions:
             self._leader_velocity = obs[:, self.layout.leader_velocity].astype(np.float64)
         return obs
+
+    def _noise(self, obs: npt.NDArray[np.float32], std: float) -> FloatArray:
+        """Sensing noise for ``obs``: Gaussian on every position, velocity and range, none on
+        valid flags or in empty slots."""
+        assert self._rng is not None
+        noise = self._rng.normal(0.0, std, obs.shape)
+        slots = self.layout.slots(noise)
+        valid = self.layout.slot_valid(self.layout.slots(obs))
+        slots[..., :4] *= valid[..., None]
+        slots[..., 4] = 0.0
+        if self.layout.static:
+            static = self.layout.static_slots(noise)
+            static[..., :2] *= self.layout.static_slots(obs)[..., 2:3]
+            static[..., 2] = 0.0
+        return noise
+
+
+def layout_of(config: EnvConfig) -> ObservationLayout:
+    """The observation layout an env config gives (its resolved sensing fields)."""
+    obs = config.observation
+    return ObservationLayout(obs.neighbours, config.static_slots, obs.lidar_rays)

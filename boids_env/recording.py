@@ -55,8 +55,7 @@ class Recording:
         cfg = self.config
         return metrics.episode_metrics(self.positions[1:], self.velocities[1:],
                                        self.commanded[1:], cfg.metrics, cfg.world.dt,
-                                       cfg.world.robot_radius, cfg.world.arena_half_size,
-                                       self.leader_path)
+                                       cfg.world.robot_radius, cfg.scene, self.leader_path)
 
     def to_parquet(self, path: str | Path) -> None:
         """Writes the tidy table with the config in the schema metadata, atomically: a

@@ -40,6 +40,14 @@ def env_fields_for(policy: Policy, fields: dict[str, Any] | None = None) -> dict
     return out
 
 
+def bind_policy(policy: Policy, env: BoidsEnv) -> None:
+    """Tells a policy that reads the env's layout (``bind``, e.g. the Reynolds policy: static
+    slots, range sensing, obstacle avoidance in scenes) which env it acts in."""
+    bind = getattr(policy, "bind", None)
+    if callable(bind):
+        bind(env)
+
+
 def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
                 options: dict[str, Any] | None = None, record: bool = True,
                 frame_every: int = 0) -> EpisodeResult:
@@ -55,6 +63,7 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
     """
     start = time.perf_counter()
     obs, _ = env.reset(seed=seed, options=options)
+    bind_policy(policy, env)
     policy.reset(seed)
     recorder = Recorder() if record else None
     frames: list[npt.NDArray[np.uint8]] = []

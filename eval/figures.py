@@ -47,6 +47,7 @@ UNITS = {
     "contacts": "contact onsets per episode", "contacts_follower": "contact onsets per episode",
     "contacts_leader": "contact onsets per episode", "collisions": "contact onsets per episode",
     "mean_nn_distance": "distance (m)", "min_distance": "distance (m)",
+    "min_clearance": "distance (m)", "no_sight_fraction": "fraction of time",
     "leader_path_deviation": "distance (m)", "mean_leader_distance": "distance (m)",
 }
 """The y-axis label (with its unit) of each metric."""

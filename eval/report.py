@@ -43,8 +43,9 @@ UNWRAPPED = "the study's unwrapped rule"
 SUMMARY_METRICS = ("V_sep", "V_coh", "V_align", "V_align_unwrapped", "polarization",
                    "mean_leader_distance")
 SAFETY_METRICS = ("touching_fraction", "mean_contact_pairs", "contacts_follower",
-                  "contacts_leader", "wall_fraction", "mean_nn_distance", "min_distance",
-                  "leader_path_deviation", "leader_path_deviation_max")
+                  "contacts_leader", "wall_fraction", "min_clearance", "no_sight_fraction",
+                  "mean_nn_distance", "min_distance", "leader_path_deviation",
+                  "leader_path_deviation_max")
 """The safety table's columns: :data:`boids_env.metrics.SAFETY_KEYS` and the minimum
 distance."""
 assert set(SAFETY_KEYS) <= set(SAFETY_METRICS)

@@ -27,7 +27,9 @@ METRIC_ROWS = (("V_sep", "separation violation (study)"), ("V_coh", "cohesion vi
                ("mean_contact_pairs", "pairs touching, mean"),
                ("contacts_follower", "contact onsets follower-follower"),
                ("contacts_leader", "contact onsets leader-follower"),
-               ("wall_fraction", "time some robot touches a wall"),
+               ("wall_fraction", "time some robot touches a wall or obstacle"),
+               ("min_clearance", "closest any robot's edge came to a wall (m)"),
+               ("no_sight_fraction", "time a follower cannot see the leader"),
                ("mean_nn_distance", "nearest-neighbour distance, mean (m)"),
                ("leader_path_deviation", "leader off its scripted path, mean (m)"),
                ("duration", "episode length T (s)"))

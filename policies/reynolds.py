@@ -11,6 +11,13 @@ position, v_j their velocity, v own velocity and clip(x, L) = x·L/|x| when |x| 
 - leader     F_lead = p_leader − p_i (metres, unscaled)
 - F = clip(Σ w·F, max_force);  command = clip(v + F / mass · dt, max_speed)
 - zero command for the first ``startup_time`` seconds after reset.
+
+Beyond the study (on in any scene but the study's empty arena, see ``obstacle_avoidance``):
+- obstacle   F_obs = −max_force · Σ_m s_m · n_m over the static slots m (n_m the unit vector
+  towards the surface point at distance d_m, u_m = max(0, v·n_m) the approach speed),
+  s_m = clip(1 − (d_m − u_m·lookahead) / obstacle_distance, 0, 1)
+- served first: a = clip(w_obs·F_obs, max_force), F = a + clip(Σ w·F, max_force − |a|)
+  (Reynolds' prioritised acceleration allocation: near a wall, avoiding it wins).
 """
 
 from __future__ import annotations
@@ -26,6 +33,9 @@ from boids_env.policies.base import BatchPolicy
 
 FloatArray = npt.NDArray[np.float64]
 RULES = ("separation", "cohesion", "alignment", "leader")
+"""The study's rules, in the order their forces are summed."""
+OBSTACLE = "obstacle"
+"""The obstacle-avoidance rule (beyond the study): its force is served first."""
 
 
 def clip_norm(x: FloatArray, limit: float) -> FloatArray:
@@ -72,15 +82,50 @@ def reynolds_forces(rel: FloatArray, vel: FloatArray, valid: npt.NDArray[np.bool
             "leader": np.array(leader_offset, dtype=float)}
 
 
+def obstacle_force(offsets: FloatArray, valid: npt.NDArray[np.bool_], own_velocity: FloatArray,
+                   p: ReynoldsParams) -> FloatArray:
+    """The unweighted obstacle-avoidance force (F, 2) from the static slots.
+
+    Args:
+        offsets: (F, M, 2) offsets from each follower to the nearest surface points (m).
+        valid: (F, M) which slots hold a point.
+        own_velocity: (F, 2) each follower's velocity.
+        p: controller parameters.
+    """
+    dist = np.sqrt(np.einsum("fmd,fmd->fm", offsets, offsets))
+    towards = np.divide(offsets, dist[..., None], out=np.zeros_like(offsets),
+                        where=(dist > 0)[..., None])
+    approach = np.maximum(np.einsum("fmd,fd->fm", towards, own_velocity), 0.0)
+    effective = dist - approach * p.obstacle_lookahead
+    strength = np.clip(1.0 - effective / p.obstacle_distance, 0.0, 1.0) * valid
+    return -p.max_force * np.einsum("fm,fmd->fd", strength, towards)
+
+
 def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
                      p: ReynoldsParams) -> tuple[FloatArray, dict[str, FloatArray]]:
-    """Combines the rule forces into the commanded velocity; returns it and weighted forces."""
+    """Combines the rule forces into the commanded velocity; returns it and weighted forces.
+    An ``obstacle`` force, when given, is served first (the others share the rest of
+    ``max_force``)."""
     weights = {"separation": p.separation_weight, "cohesion": p.cohesion_weight,
                "alignment": p.alignment_weight, "leader": p.leader_weight}
     weighted = {name: weights[name] * forces[name] for name in RULES}
     total = clip_norm(sum(weighted.values()), p.max_force)
+    if OBSTACLE in forces:
+        weighted[OBSTACLE] = p.obstacle_weight * forces[OBSTACLE]
+        first = clip_norm(weighted[OBSTACLE], p.max_force)
+        left = p.max_force - np.hypot(first[:, 0], first[:, 1])
+        rest = clip_norm_each(sum(weighted[name] for name in RULES), left)
+        pushed = np.any(first != 0.0, axis=1)[:, None]
+        total = np.where(pushed, first + rest, total)  # untouched rows: the study's sum
     command = clip_norm(own_velocity + total / p.mass * p.dt, p.max_speed)
     return command, weighted
+
+
+def clip_norm_each(x: FloatArray, limits: FloatArray) -> FloatArray:
+    """Rows of ``x`` (F, 2) scaled down to their own ``limits`` (F,) where longer."""
+    norm = np.hypot(x[..., 0], x[..., 1])
+    scale = np.minimum(1.0, limits / np.maximum(norm, 1e-300))
+    return x * scale[..., None]
 
 
 class ReynoldsPolicy(BatchPolicy):
@@ -90,14 +135,30 @@ class ReynoldsPolicy(BatchPolicy):
     (original code) parameters, any :class:`~boids_env.config.ReynoldsParams` field
     overridden (``leader_weight=1.2``). After each :meth:`act`, :attr:`forces` holds each
     rule's weighted force per follower (for drawing).
+
+    :meth:`bind` tells it the env's observation layout and scene (``run_episode``, the eval
+    runner and the ROS controller do): then it reads static slots and range sensing, and
+    avoids obstacles in any scene but the study's arena. Unbound, it reads the study-era
+    layouts (neighbour slots, at most a wall slot) from the observation's size.
     """
 
-    def __init__(self, preset: str = "paper", **overrides: Any) -> None:
+    def __init__(self, preset: str = "paper", *, layout: ObservationLayout | None = None,
+                 **overrides: Any) -> None:
         self.params = reynolds_params(preset, **overrides)
         self.preset = preset
         self.forces: dict[str, FloatArray] = {}
+        self.layout = layout
+        self.avoid = bool(self.params.obstacle_avoidance) and bool(layout and layout.static)
         self._steps = 0
-        self._last_command = np.zeros((0, 2))
+
+    def bind(self, env: Any) -> None:
+        """Reads ``env``'s observation layout and whether its scene is the study's arena
+        (any object with ``layout`` and ``config``/``episode_config``: a BoidsEnv)."""
+        self.layout = env.layout
+        config = getattr(env, "episode_config", None) or env.config
+        auto = config.world.scene != "arena"
+        wanted = self.params.obstacle_avoidance
+        self.avoid = bool(self.layout.static) and (auto if wanted is None else wanted)
 
     def reset(self, seed: int | None = None) -> None:
         self._steps = 0
@@ -105,18 +166,25 @@ class ReynoldsPolicy(BatchPolicy):
 
     def act_batch(self, obs: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
         obs = np.asarray(obs, dtype=np.float64)
-        layout = ObservationLayout.for_size(obs.shape[1])
+        layout = self.layout if self.layout is not None else ObservationLayout.for_size(
+            obs.shape[1])
+        if obs.ndim != 2 or obs.shape[1] != layout.size:
+            raise ValueError(f"observations of size {obs.shape[1:]} do not fit the bound layout "
+                             f"({layout.size} values); bind the policy to this env")
         p = self.params
         holding = self._steps * p.dt < p.startup_time - 1e-9
         self._steps += 1
+        rules = (*RULES, OBSTACLE) if self.avoid else RULES
         if holding:
-            self.forces = {name: np.zeros((len(obs), 2)) for name in RULES}
+            self.forces = {name: np.zeros((len(obs), 2)) for name in rules}
             return np.zeros((len(obs), 2), dtype=np.float32)
         slots = layout.slots(obs)
         own = obs[:, layout.own_velocity]
         forces = reynolds_forces(layout.slot_position(slots), layout.slot_velocity(slots),
                                  layout.slot_valid(slots) > 0.5, own,
                                  obs[:, layout.leader_position], p)
+        if self.avoid:
+            static = layout.static_slots(obs)
+            forces[OBSTACLE] = obstacle_force(static[..., :2], static[..., 2] > 0.5, own, p)
         command, self.forces = reynolds_command(forces, own, p)
-        self._last_command = command
         return command.astype(np.float32)

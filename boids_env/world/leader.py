@@ -14,11 +14,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.config import CURVE_SPEED_FACTOR, LEADER_MAX_SPEED, scene_matrix
 from boids_env.vectors import as_velocities, clip_speed
+from boids_env.world.scenario import CURVE_SPEED_FACTOR, LEADER_MAX_SPEED, scene_matrix
 
 if TYPE_CHECKING:
-    from boids_env.config import ScenarioConfig
+    from boids_env.world.scenario import ScenarioConfig
+    from boids_env.world.scene import Scene
 
 Vec = npt.NDArray[np.float64]
 
@@ -30,11 +31,12 @@ class Leader:
     """Base class: zero command until the start-up time, then the path's own command.
 
     Subclasses script their path in its own frame (``_move``); ``transform`` (from
-    :func:`boids_env.config.scene_matrix`) places that frame in the world, so a rotated or
+    :func:`boids_env.world.scenario.scene_matrix`) places that frame in the world, so a rotated or
     mirrored square is exactly the study's square turned.
     """
 
-    def __init__(self, speed: float, startup_time: float, transform: Vec | None = None) -> None:
+    def __init__(self, speed: float, startup_time: float, transform: Vec | None = None,
+                 origin: npt.ArrayLike = (0.0, 0.0)) -> None:
         self.speed = speed
         self.startup_time = startup_time
         self.finished = False
@@ -43,15 +45,20 @@ class Leader:
         # The identity is skipped, not multiplied: x·1 + y·0 turns −0.0 into 0.0, which flips
         # a heading of exactly ±180° and so the study's unwrapped alignment rule.
         self._turned = not np.array_equal(turn, np.eye(2))
+        self.origin = np.asarray(origin, dtype=float).reshape(2)
+        """Where the path's own frame starts in the world (the leader's start)."""
+        self._moved = bool(np.any(self.origin != 0.0))
 
     def command(self, t: float, position: Vec) -> Vec:
         """Velocity command (m/s) at time ``t`` (s since reset) for the measured ``position``."""
         if t < self.startup_time - 1e-9 or self.finished:
             return np.zeros(2)
+        local = np.asarray(position, dtype=float)
+        if self._moved:
+            local = local - self.origin
         if not self._turned:
-            return self._move(t - self.startup_time, position)
-        local = np.asarray(position, dtype=float) @ self.transform  # T⁻¹ = Tᵀ
-        return self._move(t - self.startup_time, local) @ self.transform.T
+            return self._move(t - self.startup_time, local)
+        return self._move(t - self.startup_time, local @ self.transform) @ self.transform.T
 
     def _move(self, t: float, position: Vec) -> Vec:
         raise NotImplementedError
@@ -65,9 +72,10 @@ class Leader:
         """The scripted path as a polyline (M, 2) in metres, world frame (None: no script, e.g.
         external), for the leader's path deviation."""
         local = self._local_path()
-        if local is None or not self._turned:
-            return local
-        return local @ self.transform.T
+        if local is None:
+            return None
+        world = local @ self.transform.T if self._turned else local
+        return world + self.origin if self._moved else world
 
     def _local_path(self) -> Vec | None:
         return None
@@ -97,8 +105,9 @@ class WaypointLeader(Leader):
 
     def __init__(self, targets: npt.ArrayLike, speed: float, startup_time: float, margin: float,
                  *, axis_aligned: bool, start: npt.ArrayLike = (0.0, 0.0),
-                 transform: Vec | None = None, dt: float | None = None) -> None:
-        super().__init__(speed, startup_time, transform)
+                 transform: Vec | None = None, dt: float | None = None,
+                 origin: npt.ArrayLike = (0.0, 0.0)) -> None:
+        super().__init__(speed, startup_time, transform, origin)
         self.dt = dt
         self.targets = np.asarray(targets, dtype=float).reshape(-1, 2)
         self.margin = margin
@@ -150,8 +159,9 @@ class CurveLeader(Leader):
     """Proportional gain (1/s) pulling the leader back onto its reference point."""
 
     def __init__(self, curve: Callable[[Vec], Vec], speed: float, startup_time: float,
-                 laps: int, transform: Vec | None = None) -> None:
-        super().__init__(speed, startup_time, transform)
+                 laps: int, transform: Vec | None = None,
+                 origin: npt.ArrayLike = (0.0, 0.0)) -> None:
+        super().__init__(speed, startup_time, transform, origin)
         phase = np.linspace(0.0, 2 * math.pi * laps, 4000 * laps + 1)
         self._points = curve(phase)
         seg = np.linalg.norm(np.diff(self._points, axis=0), axis=1)
@@ -208,33 +218,68 @@ class ExternalLeader(Leader):
 
 def make_leader(scenario: ScenarioConfig, rng: np.random.Generator, dt: float | None = None
                 ) -> Leader:
-    """Builds the leader of ``scenario.path``, turned by ``path_rotation`` / ``path_mirror``;
-    ``rng`` draws the random waypoints; ``dt`` (the control period) lets waypoint moves land."""
+    """Builds the leader of ``scenario.path``, turned by ``path_rotation`` / ``path_mirror``
+    about its ``start``; ``rng`` draws the random waypoints; ``dt`` (the control period) lets
+    waypoint moves land. Waypoints are absolute (world) positions."""
     size, speed, start = scenario.path_size, scenario.leader_speed, scenario.startup_time
     margin = scenario.arrival_margin
     turn = scene_matrix(scenario)
+    origin = np.asarray(scenario.start, dtype=float)
     if scenario.path == "square":
         targets = np.array(PAPER_SQUARE) * (size / 4.0)
         return WaypointLeader(targets, speed, start, margin, axis_aligned=True, transform=turn,
-                              dt=dt)
+                              dt=dt, origin=origin)
     if scenario.path == "waypoints":
-        return WaypointLeader(scenario.waypoints, speed, start, margin, axis_aligned=False,
-                              transform=turn, dt=dt)
+        local = np.array(scenario.waypoints, dtype=float)
+        if np.any(origin != 0.0):
+            local = local - origin  # the path's frame starts at the leader's start
+        return WaypointLeader(local, speed, start, margin, axis_aligned=False,
+                              transform=turn, dt=dt, origin=origin)
     if scenario.path == "random_waypoints":
         targets = rng.uniform(-size, size, (scenario.random_waypoint_count, 2))
         return WaypointLeader(targets, speed, start, margin, axis_aligned=False, transform=turn,
-                              dt=dt)
+                              dt=dt, origin=origin)
     if scenario.path == "circle":
         radius = size / 2
 
         def circle(phi: Vec) -> Vec:  # through the origin, heading +y, centre (-r, 0)
             return np.stack([radius * (np.cos(phi) - 1), radius * np.sin(phi)], axis=1)
 
-        return CurveLeader(circle, speed, start, scenario.laps, turn)
+        return CurveLeader(circle, speed, start, scenario.laps, turn, origin)
     if scenario.path == "figure_eight":
 
         def eight(phi: Vec) -> Vec:  # through the origin, lobes above and below it
             return np.stack([-size / 2 * np.sin(2 * phi), size * np.sin(phi)], axis=1)
 
-        return CurveLeader(eight, speed, start, scenario.laps, turn)
+        return CurveLeader(eight, speed, start, scenario.laps, turn, origin)
     return ExternalLeader(speed, start)
+
+
+def preview_path(scenario: ScenarioConfig, dt: float | None = None) -> Vec | None:
+    """The leader's scripted path (M, 2, world frame) without drawing anything: None for a
+    random or external path."""
+    if scenario.path in ("random_waypoints", "external"):
+        return None
+    return make_leader(scenario, np.random.default_rng(0), dt).reference_path()
+
+
+REDRAWS = 100
+"""Random waypoints crossing an obstacle are drawn again, at most this many times."""
+
+
+def redraw_clear(scenario: ScenarioConfig, scene: Scene, radius: float, leader: Leader,
+                 rng: np.random.Generator, dt: float | None = None) -> Leader:
+    """``leader`` (random waypoints) if its legs keep ``radius`` from every obstacle of the
+    scene (and ``radius`` + the arrival margin from its walls), else new draws from ``rng``
+    until they do (``ValueError`` after :data:`REDRAWS`)."""
+    for _ in range(REDRAWS):
+        path = leader.reference_path()
+        assert path is not None
+        inside = scene.clearance(path) > radius + scenario.arrival_margin
+        if inside.all() and not scene.blocked(path[:-1], path[1:], radius)[0].any():
+            return leader
+        leader = make_leader(scenario, rng, dt)
+    raise ValueError(f"random_waypoints: no path of {scenario.random_waypoint_count} targets "
+                     f"within path_size={scenario.path_size:g} m of the start keeps clear of the "
+                     f"scene's obstacles in {REDRAWS} draws; use a smaller path_size or fewer "
+                     f"targets")

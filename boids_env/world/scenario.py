@@ -1,36 +1,225 @@
-"""Initial positions (the study's grids of :mod:`~boids_env.world.layout` plus seeded jitter)
-and the episode's length."""
+"""The scenario: group size, initial layout, leader path and episode end (its config section
+and the pure geometry of starts and paths).
+
+Initial positions are the study's grids of :mod:`~boids_env.world.layout` plus seeded jitter,
+turned and placed at the leader's start; the episode's length follows from the path.
+"""
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.config import scene_matrix
+from boids_env.checks import integer as _integer
+from boids_env.checks import number as _number
+from boids_env.checks import set_field as _set
 from boids_env.world.layout import PAPER_LAYOUTS, follower_cells, grid_cells
 
-if TYPE_CHECKING:
-    from boids_env.config import ScenarioConfig
+__all__ = ["CURVE_SPEED_FACTOR", "LEADER_MAX_SPEED", "PAPER_LAYOUTS", "PATHS", "ScenarioConfig",
+           "grid_cells", "initial_positions", "layout_extent", "layout_heading", "path_extent",
+           "scene_matrix", "step_limit"]
 
-__all__ = ["PAPER_LAYOUTS", "grid_cells", "initial_positions", "step_limit"]
+LEADER_MAX_SPEED = 2.0
+"""Fastest leader (m/s): the bound of ``leader_speed`` and of an external leader's command."""
+CURVE_SPEED_FACTOR = 1.5
+"""A curve-following leader may command up to this × ``leader_speed`` to regain its path."""
+PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "external")
+"""Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
 
-def initial_positions(scenario: ScenarioConfig, rng: np.random.Generator | None
-                      ) -> npt.NDArray[np.float64]:
-    """Initial positions (N, 2) in metres, the leader first at the origin.
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """Group size, initial layout, leader path and episode end (DESIGN sections 2 and 6)."""
+
+    robots: int = 13
+    """Group size, the leader included, as the study counts it (study: 7, 13, 19)."""
+    leader_speed: float = 0.55
+    """Leader speed along its path (m/s). Study: 0.5, 0.55 (default), 0.6."""
+    path: str = "square"
+    """Leader path, one of PATHS. ``square`` is the paper's; the others are opt-in."""
+    path_size: float = 4.0
+    """Half extent of the leader path (m). 4.0 gives the paper's square exactly; the circle's
+    diameter, the figure-eight's length and the random waypoints' box scale with it."""
+    path_rotation: float = 0.0
+    """Rotation (degrees, counter-clockwise about the leader's start) of the leader path and of
+    the initial layout: the whole scene turned. 0 is the study's. Opt-in, for robustness."""
+    path_mirror: bool = False
+    """Mirror the leader path and the initial layout in x before the rotation (the square then
+    turns right at its first corner). False is the study's."""
+    waypoints: tuple[tuple[float, float], ...] = ()
+    """Absolute targets (m) for ``path="waypoints"``; ignored by the other paths."""
+    laps: int = 1
+    """Laps of the circle and figure-eight paths."""
+    random_waypoint_count: int = 6
+    """Number of targets drawn for ``path="random_waypoints"``."""
+    arrival_margin: float = 0.1
+    """A leader move ends when within this distance of its target (m). Paper: 0.1 m."""
+    startup_time: float = 2.0
+    """Time (s) the leader waits after reset before moving; the Reynolds followers hold still as
+    long. Paper: 2.0 s."""
+    startup_hold: bool = False
+    """Hold every follower still (command zero) for ``startup_time`` whatever the policy
+    asks, as the study's controller did at its start-up. Off by default: the Reynolds policy
+    holds by itself; learned policies trained with it carry it in their env fields."""
+    tail_time: float = 0.5
+    """Time (s) the episode goes on after the leader finishes its path; 0.5 s makes the paper's
+    case last 74.6 s, the study's T (the leader's own acceleration at the corners and the
+    0.1 s control period add about 1.2 s to the path's nominal 70.9 s)."""
+    max_cycles: int | None = None
+    """Hard step limit (truncation). None: 3× the path's nominal duration, or 1000 steps for the
+    ``external`` leader."""
+    init_jitter: float = 0.05
+    """Half width (m) of the uniform, seeded jitter added to every follower's initial grid
+    position, so that seeds give different runs (the study's runs differed through ROS timing)."""
+    layout_spacing: float = 0.5
+    """Spacing (m) of the initial grid behind the leader. Paper: 0.5 m."""
+    start: tuple[float, float] = (0.0, 0.0)
+    """Where the leader starts (m, world frame); the layout and the shaped paths (square,
+    circle, figure-eight, random waypoints) move with it and turn about it. The study's:
+    (0, 0). Scenes set their own."""
+    start_heading: float | None = None
+    """Direction (degrees, counter-clockwise from +x) the leader faces at the start; the
+    grid lies behind it. None: the study's (+y, turned with ``path_rotation``) in the arena,
+    the direction of the path's first target in any other scene."""
+
+    def __post_init__(self) -> None:
+        _set(self, "robots", _integer("robots", self.robots, 2, 10_000))
+        _set(self, "leader_speed", _number("leader_speed", self.leader_speed, 0.0,
+                                           LEADER_MAX_SPEED, lo_open=True, unit="m/s"))
+        if self.path not in PATHS:
+            raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
+        _set(self, "path_size", _number("path_size", self.path_size, 0.0, 1000, lo_open=True,
+                                        unit="m"))
+        _set(self, "path_rotation", _number("path_rotation", self.path_rotation, -360, 360,
+                                            unit="degrees"))
+        if not isinstance(self.path_mirror, bool):
+            raise ValueError(f"path_mirror must be True or False, got {self.path_mirror!r}")
+        _set(self, "waypoints", _waypoints(self.waypoints))
+        if self.path == "waypoints" and not self.waypoints:
+            raise ValueError("waypoints must hold at least one (x, y) target when "
+                             "path='waypoints', got ()")
+        _set(self, "laps", _integer("laps", self.laps, 1, 1000))
+        _set(self, "random_waypoint_count",
+             _integer("random_waypoint_count", self.random_waypoint_count, 1, 1000))
+        _set(self, "arrival_margin", _number("arrival_margin", self.arrival_margin, 0.0, 1.0,
+                                             lo_open=True, unit="m"))
+        _set(self, "startup_time", _number("startup_time", self.startup_time, 0.0, 600, unit="s"))
+        if not isinstance(self.startup_hold, bool):
+            raise ValueError(f"startup_hold must be True or False, got {self.startup_hold!r}")
+        _set(self, "tail_time", _number("tail_time", self.tail_time, 0.0, 600, unit="s"))
+        if self.max_cycles is not None:
+            _set(self, "max_cycles", _integer("max_cycles", self.max_cycles, 1, 10**9))
+        _set(self, "init_jitter", _number("init_jitter", self.init_jitter, 0.0, 0.2, unit="m"))
+        _set(self, "layout_spacing", _number("layout_spacing", self.layout_spacing, 0.1, 10,
+                                             unit="m"))
+        start = _waypoints((self.start,), "start") if _pair(self.start) else None
+        if start is None:
+            raise ValueError(f"start must be an (x, y) position in metres, got {self.start!r}")
+        _set(self, "start", start[0])
+        if self.start_heading is not None:
+            _set(self, "start_heading", _number("start_heading", self.start_heading, -360, 360,
+                                                unit="degrees"))
+
+
+def _pair(value: Any) -> bool:
+    return isinstance(value, tuple | list) and len(value) == 2
+
+
+def _waypoints(value: Any, name: str = "waypoints") -> tuple[tuple[float, float], ...]:
+    try:
+        points = tuple((float(p[0]), float(p[1])) for p in value)
+        if any(len(p) != 2 for p in value):
+            raise ValueError
+    except (TypeError, ValueError, IndexError):
+        raise ValueError(f"{name} must be a sequence of (x, y) pairs in metres, "
+                         f"got {value!r}") from None
+    if not all(math.isfinite(c) for p in points for c in p):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return points
+
+
+
+def scene_matrix(scenario: ScenarioConfig) -> np.ndarray:
+    """The matrix T (2, 2) of ``path_rotation`` and ``path_mirror``: world = T @ local."""
+    a = math.radians(scenario.path_rotation)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    return rot @ np.diag([-1.0 if scenario.path_mirror else 1.0, 1.0])
+
+
+def layout_extent(scenario: ScenarioConfig) -> float:
+    """Largest |coordinate| (m) an initial position can take, jitter included."""
+    cells = follower_cells(scenario.robots, scenario.layout_spacing) @ scene_matrix(scenario).T
+    return float(np.abs(cells).max(initial=0.0)) + scenario.init_jitter
+
+
+def path_extent(scenario: ScenarioConfig) -> float:
+    """Largest |coordinate| (m) the leader's path can reach (0 for an external leader): the
+    corners of the path's bounding box in its own frame, turned into the world."""
+    s = scenario.path_size
+    if scenario.path == "waypoints":
+        points = np.array(scenario.waypoints)
+    elif scenario.path == "external":
+        return 0.0
+    else:
+        box = {"square": (-s, s, -s, s), "random_waypoints": (-s, s, -s, s),
+               "circle": (-s, 0.0, -s / 2, s / 2), "figure_eight": (-s / 2, s / 2, -s, s)}
+        x0, x1, y0, y1 = box[scenario.path]
+        points = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
+    return float(np.abs(points @ scene_matrix(scenario).T).max())
+
+
+
+
+def initial_positions(scenario: ScenarioConfig, rng: np.random.Generator | None,
+                      heading: float | None = None) -> npt.NDArray[np.float64]:
+    """Initial positions (N, 2) in metres, the leader first at ``scenario.start``.
 
     The study's cells for N = 7, 13, 19 at 0.5 m spacing; the grid extension otherwise; turned
-    with the path by ``path_rotation`` / ``path_mirror``. Every follower gets a uniform jitter
-    of ±``init_jitter`` per coordinate from ``rng``.
+    with the path by ``path_rotation`` / ``path_mirror``, or, with ``heading`` (rad, the
+    direction the leader faces), turned so that the grid lies behind the leader. Every
+    follower gets a uniform jitter of ±``init_jitter`` per coordinate from ``rng``.
     """
     cells = follower_cells(scenario.robots, scenario.layout_spacing)
-    if scenario.path_rotation or scenario.path_mirror:
+    if heading is not None:
+        turn = rotation_matrix(heading - math.pi / 2)
+        if scenario.path_mirror:
+            turn = turn @ np.diag([-1.0, 1.0])
+        cells = cells @ turn.T
+    elif scenario.path_rotation or scenario.path_mirror:
         cells = cells @ scene_matrix(scenario).T
     if rng is not None and scenario.init_jitter > 0:
         cells = cells + rng.uniform(-scenario.init_jitter, scenario.init_jitter, cells.shape)
-    return np.concatenate([np.zeros((1, 2)), cells])
+    positions = np.concatenate([np.zeros((1, 2)), cells])
+    start = np.asarray(scenario.start, dtype=float)
+    return positions + start if np.any(start != 0.0) else positions
+
+
+def rotation_matrix(angle: float) -> npt.NDArray[np.float64]:
+    """The matrix (2, 2) turning vectors by ``angle`` (rad) counter-clockwise."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+def layout_heading(scenario: ScenarioConfig, scene_name: str,
+                   reference_path: npt.NDArray[np.float64] | None) -> float | None:
+    """The direction (rad) the initial grid faces: ``start_heading``; None (the study's rule,
+    the grid behind in −y turned with the path) in the study's arena; else the direction from
+    the start to the path's first distinct point."""
+    if scenario.start_heading is not None:
+        return math.radians(scenario.start_heading)
+    if scene_name == "arena" or reference_path is None:
+        return None
+    offsets = reference_path - np.asarray(scenario.start, dtype=float)
+    far = np.flatnonzero(np.hypot(offsets[:, 0], offsets[:, 1]) > 1e-9)
+    if not len(far):
+        return None
+    dx, dy = offsets[far[0]]
+    return math.atan2(dy, dx)
 
 
 def step_limit(scenario: ScenarioConfig, nominal_path_time: float | None, dt: float) -> int:

@@ -1,4 +1,5 @@
-"""The pymunk world: circular Sphero robots in a walled square arena. Knows nothing of RL.
+"""The pymunk world: circular Sphero robots in a static scene (the study's walled square
+arena by default; see :mod:`~boids_env.world.scene`). Knows nothing of RL.
 
 Each robot is a dynamic disc (infinite moment: a holonomic robot does not spin) joined to a
 kinematic *control body* by a pivot joint with ``max_bias = 0`` and ``max_force = drive_force``:
@@ -24,6 +25,7 @@ from scipy.spatial import cKDTree
 
 from boids_env.config import WorldConfig
 from boids_env.metrics import CONTACT_TOLERANCE
+from boids_env.world.scene import Scene
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -48,7 +50,7 @@ class Snapshot:
     contacts: npt.NDArray[np.int64]
     """(M, 2) index pairs i < j of robots touching each other."""
     wall_contacts: npt.NDArray[np.int64]
-    """(W,) indices of robots touching a wall."""
+    """(W,) indices of robots touching a wall or an obstacle (static geometry)."""
 
 
 _C_STEP = getattr(getattr(pymunk, "_chipmunk", None), "lib", None)
@@ -67,10 +69,22 @@ def _buffers() -> tuple[batch.Buffer, batch.Buffer]:
 
 
 class World:
-    """A fresh pymunk space with static walls and ``len(positions)`` robots at rest."""
+    """A fresh pymunk space with the static scene and ``len(positions)`` robots at rest.
 
-    def __init__(self, config: WorldConfig, positions: npt.ArrayLike) -> None:
+    Args:
+        config: the physical world's section of the env config.
+        positions: (N, 2) initial robot positions (m), the leader first.
+        scene: the static geometry (None: the scene ``config.scene`` names).
+    """
+
+    def __init__(self, config: WorldConfig, positions: npt.ArrayLike,
+                 scene: Scene | None = None) -> None:
         self.config = config
+        if scene is None:
+            from boids_env.world.scenes import load_scene
+
+            scene = load_scene(config.scene, config.arena_half_size)
+        self.scene = scene
         start = np.asarray(positions, dtype=float)
         self.n = len(start)
         self.steps = 0
@@ -85,7 +99,7 @@ class World:
         self.space.collision_bias = 0.0
         h = config.dt / config.substeps
         self._schedule = [h] * (config.substeps - 1) + [h / 2, h / 2]
-        self._add_walls()
+        self._add_scene()
         self._robots: list[pymunk.Body] = []
         for p in start:
             body = pymunk.Body(config.robot_mass, float("inf"))
@@ -113,14 +127,31 @@ class World:
         self.velocities = np.zeros((self.n, 2))
         self._refresh()
 
-    def _add_walls(self) -> None:
-        h = self.config.arena_half_size + WALL_THICKNESS
-        corners = [(-h, -h), (h, -h), (h, h), (-h, h)]
-        for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
-            wall = pymunk.Segment(self.space.static_body, a, b, WALL_THICKNESS)
-            wall.elasticity = 0.0
-            wall.friction = 0.0
-            self.space.add(wall)
+    def _add_scene(self) -> None:
+        """Static shapes: the box's walls as thick segments whose inner faces are the box
+        (as the study's arena always had them), capsules as segments or discs, convex blocks
+        as polygons; rigid, frictionless, inelastic like the robots."""
+        scene, static = self.scene, self.space.static_body
+        shapes: list[pymunk.Shape] = []
+        if scene.box is not None:
+            x0, y0, x1, y1 = scene.box
+            t = WALL_THICKNESS
+            # (-h) - t == -(h + t) exactly: the arena's walls are the study-era ones
+            corners = [(x0 - t, y0 - t), (x1 + t, y0 - t), (x1 + t, y1 + t), (x0 - t, y1 + t)]
+            for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
+                shapes.append(pymunk.Segment(static, a, b, t))
+        for a, b, r in zip(scene.a.tolist(), scene.b.tolist(), scene.radius.tolist(),
+                           strict=True):
+            if a == b:
+                shapes.append(pymunk.Circle(static, r, tuple(a)))
+            else:
+                shapes.append(pymunk.Segment(static, tuple(a), tuple(b), r))
+        for poly in scene.polygons:
+            shapes.append(pymunk.Poly(static, [tuple(p) for p in poly.tolist()]))
+        for shape in shapes:
+            shape.elasticity = 0.0
+            shape.friction = 0.0
+        self.space.add(*shapes)
 
     def _check_body_order(self) -> None:
         buf = _buffers()[0]
@@ -168,12 +199,11 @@ class World:
         return self.steps * self.config.dt
 
     def contacts(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-        """Robot pairs (i < j) touching each other, and robots touching a wall."""
+        """Robot pairs (i < j) touching each other, and robots touching static geometry."""
         r = self.config.robot_radius
         pairs = cKDTree(self.positions).query_pairs(2 * r + CONTACT_TOLERANCE,
                                                     output_type="ndarray")
-        reach = self.config.arena_half_size - r - CONTACT_TOLERANCE
-        walls = np.flatnonzero(np.any(np.abs(self.positions) >= reach, axis=1))
+        walls = np.flatnonzero(self.scene.within(self.positions, r, CONTACT_TOLERANCE))
         return pairs.astype(np.int64).reshape(-1, 2), walls.astype(np.int64)
 
     def snapshot(self) -> Snapshot:

@@ -98,23 +98,30 @@ def test_safety_metrics_on_a_hand_made_trajectory():
         [[0, 0], [touch, 0], [5 - r, 0]],
         [[0, 0], [1, 0], [3, 0]],
     ], dtype=float)
-    s = metrics.safety_metrics(pos, r, 5.0, leader_path=np.array([[0.0, -1], [0, 1]]))
+    wall = np.abs(pos).max(axis=2) >= 5 - r - metrics.CONTACT_TOLERANCE  # (T, N), by hand
+    clearance = 5 - np.abs(pos).max(axis=2)
+    sight = np.array([[True, True], [True, False], [True, True], [False, False]])
+    s = metrics.safety_metrics(pos, r, wall, leader_path=np.array([[0.0, -1], [0, 1]]),
+                               clearance=clearance, sight=sight)
     assert s["touching_fraction"] == 0.5
     assert s["mean_contact_pairs"] == 0.5
     assert s["contacts_follower"] == 1 and s["contacts_leader"] == 1
     assert s["wall_fraction"] == 0.25
+    assert s["min_clearance"] == pytest.approx(0.0), "follower 2 touches the wall at 5 - r"
+    assert s["no_sight_fraction"] == 3 / 8
     nn = [np.mean([1, 1, 1]), np.mean([1, touch, touch]), np.mean([touch, touch, 5 - r - touch]),
           np.mean([1, 1, 2])]
     assert s["mean_nn_distance"] == pytest.approx(np.mean(nn))
     assert s["min_distance"] == pytest.approx(touch)
     assert s["leader_path_deviation"] == 0.0 and s["leader_path_deviation_max"] == 0.0
-    assert np.isnan(metrics.safety_metrics(pos, r, 5.0)["leader_path_deviation"])
+    bare = metrics.safety_metrics(pos, r)
+    assert np.isnan(bare["leader_path_deviation"]) and np.isnan(bare["wall_fraction"])
 
 
 def test_safety_metrics_of_large_groups_match_brute_force():
     rng = np.random.default_rng(3)
     pos = np.cumsum(rng.normal(0, 0.02, (60, 70, 2)), axis=0) + rng.uniform(-1, 1, (1, 70, 2))
-    big = metrics.safety_metrics(pos, 0.036, 5.0)  # 70 robots: the KD-tree path
+    big = metrics.safety_metrics(pos, 0.036)  # 70 robots: the KD-tree path
     # compared with the definitions computed by brute force
     small = {}
     diff = pos[:, :, None] - pos[:, None]

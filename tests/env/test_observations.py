@@ -55,8 +55,7 @@ def test_observation_layout_contents():
     pos = np.array([[0.0, 0.0], [0.5, 0.0], [0.5, 0.9], [3.0, 3.0]])
     vel = np.array([[0.1, 0.2], [0.0, 0.3], [-0.1, 0.0], [0.2, 0.2]])
     layout = ob.ObservationLayout(3)
-    obs = ob.build_observations(pos, vel, layout, horizon=1.0, velocity_bound=3.0,
-                                arena_half_size=5.0)
+    obs = ob.build_observations(pos, vel, layout, horizon=1.0, velocity_bound=3.0, reach=10.0)
     assert obs.shape == (3, 6 + 15) and obs.dtype == np.float32
     f1 = obs[0]
     assert f1[layout.own_velocity].tolist() == pytest.approx([0.0, 0.3])
@@ -111,5 +110,5 @@ def test_wall_slot_points_at_the_nearest_wall_within_the_horizon():
 
 
 def test_layout_for_size_refuses_impossible_sizes():
-    with pytest.raises(ValueError, match="no observation layout has size 8"):
+    with pytest.raises(ValueError, match="no study-era observation layout has size 8"):
         ob.ObservationLayout.for_size(8)

@@ -7,6 +7,7 @@ from boids_env import parallel_env, reynolds_params
 from boids_env.eval.episode import run_episode
 from boids_env.observations import ObservationLayout, build_observations
 from boids_env.policies import ReynoldsPolicy
+from boids_env.policies.reynolds import reynolds_command, reynolds_forces
 
 
 def clip(x, limit):
@@ -48,12 +49,19 @@ def test_from_observations_equals_full_state_reference(preset, robots, leader_we
         # Dyadic values are exact in float32, so the observation loses nothing.
         pos = np.round(rng.uniform(-1.2, 1.2, (robots, 2)) * 1024) / 1024
         vel = np.round(rng.uniform(-0.5, 0.5, (robots, 2)) * 1024) / 1024
-        obs = build_observations(pos, vel, layout, 1.0, 3.0, 5.0)
+        obs = build_observations(pos, vel, layout, 1.0, 3.0, 10.0)
         policy = ReynoldsPolicy(preset, leader_weight=leader_weight, startup_time=0.0)
         got = policy.act_batch(obs).astype(np.float64)
         want = reference(pos, vel, p)
         assert np.abs(got - want.astype(np.float32)).max() <= 1e-9, f"trial {trial}"
-        assert np.abs(policy._last_command - want).max() <= 1e-9, f"trial {trial}"
+        # and in float64, before the cast to the action's float32
+        slots = layout.slots(obs.astype(np.float64))
+        own = obs[:, layout.own_velocity].astype(np.float64)
+        forces = reynolds_forces(layout.slot_position(slots), layout.slot_velocity(slots),
+                                 layout.slot_valid(slots) > 0.5, own,
+                                 obs[:, layout.leader_position].astype(np.float64), p)
+        command, _ = reynolds_command(forces, own, p)
+        assert np.abs(command - want).max() <= 1e-9, f"trial {trial}"
 
 
 def test_holds_still_during_startup_then_moves():

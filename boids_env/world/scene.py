@@ -1,0 +1,444 @@
+"""The static scene: the arena's walls plus any obstacles, and every query on them.
+
+One :class:`Scene` serves the physics (which shapes to add), the observations (nearest
+static points, range sensing), the metrics (wall contact, clearance, line of sight), the
+config checks (start layout and leader path clear of obstacles), the renderer and the bags.
+Pure numpy (see :mod:`~boids_env.world.geometry`): no pymunk here.
+
+A scene holds
+- an optional **box**: the enclosing walls as their inner faces ``(xmin, ymin, xmax, ymax)``
+  (the study's arena is the box ±5 m); its queries are computed exactly as the study-era code
+  did, so the default case stays bit-identical;
+- **capsules**: segments swept by a radius (inner walls, round pillars with ``a == b``, the
+  contours of a map);
+- convex **polygons** (solid blocks), whose edges also count as zero-radius capsules for the
+  distance and ray queries;
+- optionally the **occupancy grid** of a map (for ``/map`` and for telling free from
+  occupied space exactly as the map says).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from boids_env.world import geometry as geo
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+BOX_WALLS = ("east", "north", "west", "south")
+"""The box's walls in the order its queries use (+x, +y, −x, −y)."""
+INDEX_CELL = 0.5
+"""Cell size (m) of the spatial index that narrows a query to the shapes near a point."""
+SECTOR_COS = math.cos(math.radians(45.0))
+"""Static slots after the first hold points whose direction differs by more than 45° from
+every earlier slot's (so a corridor shows both walls and a corner both sides)."""
+FAR = 1e9
+"""Coordinates of the padding capsule the index points empty entries at (never hit)."""
+SCENE_FIELDS = ("path", "path_size", "waypoints", "start", "start_heading", "layout_spacing",
+                "laps")
+"""The scenario fields a scene may set; choosing a scene resets all of them to its values."""
+STUDY_DEFAULTS: dict[str, Any] = {"path": "square", "path_size": 4.0, "waypoints": (),
+                                  "start": (0.0, 0.0), "start_heading": None,
+                                  "layout_spacing": 0.5, "laps": 1}
+"""Those fields as the study has them (the ``arena`` scene's)."""
+
+
+@dataclass(frozen=True)
+class OccupancyGrid:
+    """A map's cells as ROS ``nav_msgs/OccupancyGrid`` holds them: row 0 at the origin (the
+    bottom of the image), values 0 free, 100 occupied, −1 unknown."""
+
+    cells: npt.NDArray[np.int8]
+    """(height, width) occupancy values."""
+    resolution: float
+    """Metres per cell."""
+    origin: tuple[float, float, float]
+    """(x, y, yaw) of the lower-left corner of cell (0, 0) (m, m, rad)."""
+
+    def occupied(self, points: FloatArray) -> BoolArray:
+        """Whether each point (P, 2) lies in an occupied or unknown cell, or off the map."""
+        x0, y0, yaw = self.origin
+        rel = points - np.array([x0, y0])
+        c, s = math.cos(yaw), math.sin(yaw)
+        local = np.stack([rel[:, 0] * c + rel[:, 1] * s, -rel[:, 0] * s + rel[:, 1] * c], 1)
+        col = np.floor(local[:, 0] / self.resolution).astype(np.int64)
+        row = np.floor(local[:, 1] / self.resolution).astype(np.int64)
+        h, w = self.cells.shape
+        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+        out = np.ones(len(points), dtype=bool)
+        out[inside] = self.cells[row[inside], col[inside]] != 0
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """Static geometry of a world (metres). Build scenes with
+    :func:`boids_env.world.scenes.load_scene` or the constructors there."""
+
+    name: str
+    """Built-in name, or the file it was read from."""
+    description: str = ""
+    box: tuple[float, float, float, float] | None = None
+    """Inner faces of the enclosing walls ``(xmin, ymin, xmax, ymax)``; None: no box."""
+    a: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
+    """(S, 2) capsule starts."""
+    b: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
+    """(S, 2) capsule ends (equal to the start for a round pillar)."""
+    radius: FloatArray = field(default_factory=lambda: np.zeros(0))
+    """(S,) capsule radii (m)."""
+    polygons: tuple[FloatArray, ...] = ()
+    """Convex solid blocks, each (V, 2) counter-clockwise."""
+    names: tuple[str, ...] = ()
+    """A name for each capsule, then each polygon (for messages)."""
+    grid: OccupancyGrid | None = None
+    """A map's cells (None for scenes made of shapes)."""
+    defaults: dict[str, Any] = field(default_factory=dict)
+    """Scenario fields this scene sets unless the user gives them (its leader path, start)."""
+    _cache: dict[Any, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        a, b = np.asarray(self.a, float).reshape(-1, 2), np.asarray(self.b, float).reshape(-1, 2)
+        r = np.asarray(self.radius, float).reshape(-1)
+        if not len(a) == len(b) == len(r):
+            raise ValueError("scene capsules need as many ends and radii as starts")
+        polys = tuple(np.asarray(p, float).reshape(-1, 2) for p in self.polygons)
+        object.__setattr__(self, "a", a)
+        object.__setattr__(self, "b", b)
+        object.__setattr__(self, "radius", r)
+        object.__setattr__(self, "polygons", polys)
+        names = tuple(self.names) or tuple(f"obstacle {k}" for k in range(len(r) + len(polys)))
+        if len(names) != len(r) + len(polys):
+            raise ValueError("a scene needs one name per capsule and polygon")
+        object.__setattr__(self, "names", names)
+        edges = [(p, np.roll(p, -1, axis=0)) for p in polys]
+        # every query shape as a capsule: the capsules, then the polygons' edges (radius 0)
+        self._set("_qa", np.concatenate([a, *(e[0] for e in edges)]) if edges else a)
+        self._set("_qb", np.concatenate([b, *(e[1] for e in edges)]) if edges else b)
+        self._set("_qr", np.concatenate([r, np.zeros(sum(len(p) for p in polys))]))
+        owner = [np.arange(len(r))] + [np.full(len(p), len(r) + k) for k, p in enumerate(polys)]
+        self._set("_owner", np.concatenate(owner).astype(np.intp))
+
+    def _set(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_cache"] = {}
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
+    # ------------------------------------------------------------------------ extent
+    @property
+    def is_empty_box(self) -> bool:
+        """Whether the scene is an empty box (the study's arena, of any size)."""
+        return self.box is not None and not len(self.radius) and not self.polygons
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(xmin, ymin, xmax, ymax)`` of the space robots can be in (the box's inner faces,
+        else the extent of every shape)."""
+        if self.box is not None:
+            return self.box
+        if "bounds" not in self._cache:
+            pts = np.concatenate([self._qa - self._qr[:, None], self._qa + self._qr[:, None],
+                                  self._qb - self._qr[:, None], self._qb + self._qr[:, None]])
+            if self.grid is not None:
+                h, w = self.grid.cells.shape
+                x0, y0, _ = self.grid.origin
+                pts = np.concatenate([pts, [[x0, y0], [x0 + w * self.grid.resolution,
+                                                       y0 + h * self.grid.resolution]]])
+            lo, hi = pts.min(axis=0), pts.max(axis=0)
+            self._cache["bounds"] = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+        return self._cache["bounds"]
+
+    @property
+    def span(self) -> float:
+        """The largest distance along an axis between two points of the scene (m): bounds
+        the leader's position relative to a follower."""
+        x0, y0, x1, y1 = self.bounds
+        return max(x1 - x0, y1 - y0)
+
+    @property
+    def half_extent(self) -> float:
+        """Largest |coordinate| (m) a point of the scene can have."""
+        return max(abs(c) for c in self.bounds)
+
+    # -------------------------------------------------------------------- the index
+    def _candidates(self, points: FloatArray, reach: float) -> npt.NDArray[np.intp]:
+        """(P, C) indices of the query capsules that can lie within ``reach`` of each point
+        (padded with the index of a far-away dummy capsule)."""
+        key = ("index", float(reach))
+        if key not in self._cache:
+            self._cache[key] = _build_index(self, reach)
+        origin, shape, table = self._cache[key]
+        cell = np.floor((points - origin) / INDEX_CELL).astype(np.intp)
+        cx = np.clip(cell[:, 0], 0, shape[0] - 1)
+        cy = np.clip(cell[:, 1], 0, shape[1] - 1)
+        return table[cx * shape[1] + cy]
+
+    def _query_arrays(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The query capsules plus the dummy one at the end."""
+        if "padded" not in self._cache:
+            far = np.array([[FAR, FAR]])
+            self._cache["padded"] = (np.concatenate([self._qa, far]),
+                                     np.concatenate([self._qb, far]),
+                                     np.concatenate([self._qr, [0.0]]))
+        return self._cache["padded"]
+
+    # ---------------------------------------------------------------- box (exact)
+    def _box_gaps(self, points: FloatArray) -> FloatArray:
+        """Distances (P, 4) from each point to the box's walls (east, north, west, south),
+        computed as the study's arena code did."""
+        x0, y0, x1, y1 = self.box  # type: ignore[misc]
+        return np.concatenate([np.array([x1, y1]) - points, points - np.array([x0, y0])],
+                              axis=1)
+
+    def _box_within(self, points: FloatArray, margins: tuple[float, ...]) -> BoolArray:
+        x0, y0, x1, y1 = self.box  # type: ignore[misc]
+        hi = np.array([x1, y1], dtype=float)
+        lo = -np.array([x0, y0], dtype=float)
+        for m in margins:  # subtracted one by one, as the arena code did (h - r - tol)
+            hi = hi - m
+            lo = lo - m
+        return np.any((points >= hi) | (-points >= lo), axis=-1)
+
+    # ---------------------------------------------------------------- distances
+    def within(self, points: FloatArray, *margins: float) -> BoolArray:
+        """Whether each point (..., 2) is within the sum of ``margins`` (m) of static
+        geometry (a robot of radius r touches at ``within(p, r, tolerance)``)."""
+        pts = np.asarray(points, dtype=float)
+        shape = pts.shape[:-1]
+        flat = pts.reshape(-1, 2)
+        out = np.zeros(len(flat), dtype=bool)
+        if self.box is not None:
+            out |= self._box_within(flat, margins)
+        if len(self._qr):
+            out |= self._shape_clearance(flat, sum(margins)) <= sum(margins)
+        if self.polygons or self.grid is not None:
+            out |= self.inside(flat)
+        return out.reshape(shape)
+
+    def _shape_clearance(self, points: FloatArray, reach: float) -> FloatArray:
+        """Distance (P,) from each point to the nearest capsule or polygon edge surface
+        (values beyond ``reach`` may be any number above it)."""
+        qa, qb, qr = self._query_arrays()
+        idx = self._candidates(points, reach)
+        _, d = geo.closest_on_segments(points[:, None, :], qa[idx], qb[idx])
+        return np.min(d - qr[idx], axis=1, initial=np.inf)
+
+    def clearance(self, points: FloatArray) -> FloatArray:
+        """Distance (m) from each point (..., 2) to the nearest static geometry (negative
+        inside a capsule; 0 inside a polygon or an occupied map cell)."""
+        pts = np.asarray(points, dtype=float)
+        shape = pts.shape[:-1]
+        flat = pts.reshape(-1, 2)
+        best = np.full(len(flat), np.inf)
+        if self.box is not None:
+            best = np.minimum(best, self._box_gaps(flat).min(axis=1))
+        if len(self._qr):
+            qa, qb, qr = self._qa, self._qb, self._qr
+            for start in range(0, len(qr), 256):  # exact for any distance: all shapes
+                sl = slice(start, start + 256)
+                _, d = geo.closest_on_segments(flat[:, None, :], qa[None, sl], qb[None, sl])
+                best = np.minimum(best, (d - qr[None, sl]).min(axis=1))
+        if self.polygons or self.grid is not None:
+            best = np.where(self.inside(flat), np.minimum(best, 0.0), best)
+        return best.reshape(shape)
+
+    def inside(self, points: FloatArray) -> BoolArray:
+        """Whether each point (P, 2) is inside a solid polygon or an occupied map cell (or
+        off the map)."""
+        out = np.zeros(len(points), dtype=bool)
+        for poly in self.polygons:
+            out |= geo.points_in_polygon(points, poly)
+        if self.grid is not None:
+            out |= self.grid.occupied(points)
+        return out
+
+    # --------------------------------------------------------------- sensing
+    def nearest_points(self, points: FloatArray, slots: int, reach: float
+                       ) -> tuple[FloatArray, BoolArray]:
+        """The nearest points of static geometry around each point: slot 0 the nearest,
+        each later slot the nearest whose direction differs by more than 45° from every
+        earlier slot's; only points within ``reach``.
+
+        Args:
+            points: (P, 2) positions (robot centres).
+            slots: number of slots M.
+            reach: range (m); farther geometry leaves a slot empty.
+
+        Returns:
+            ``(offsets (P, M, 2), valid (P, M))``: offsets from each point to the surface
+            point (m, world frame), zeros in empty slots.
+        """
+        pts = np.asarray(points, dtype=float)
+        cand_off, cand_d = self._surface_candidates(pts, reach)
+        p = len(pts)
+        offsets = np.zeros((p, slots, 2))
+        valid = np.zeros((p, slots), dtype=bool)
+        dist = np.where(cand_d <= reach, cand_d, np.inf)
+        rows = np.arange(p)
+        for k in range(slots):
+            pick = np.argmin(dist, axis=1)
+            d = dist[rows, pick]
+            ok = np.isfinite(d)
+            chosen = cand_off[rows, pick]
+            offsets[ok, k] = chosen[ok]
+            valid[:, k] = ok
+            if k + 1 < slots:
+                # candidates within 45° of the chosen direction are used up
+                cosine = geo.dot(cand_off, chosen[:, None, :]) / np.maximum(
+                    cand_d * d[:, None], 1e-300)
+                dist = np.where(ok[:, None] & (cosine > SECTOR_COS), np.inf, dist)
+        return offsets, valid
+
+    def _surface_candidates(self, points: FloatArray, reach: float
+                            ) -> tuple[FloatArray, FloatArray]:
+        """Offsets (P, C, 2) from each point to candidate surface points and their lengths:
+        the box's four walls (as the arena's wall slot computed them) and the nearest point
+        of each capsule near the point."""
+        parts_off, parts_d = [], []
+        if self.box is not None:
+            gaps = self._box_gaps(points)  # (P, 4)
+            direction = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+            parts_off.append(direction[None] * gaps[:, :, None])
+            parts_d.append(gaps)
+        if len(self._qr):
+            qa, qb, qr = self._query_arrays()
+            idx = self._candidates(points, reach)
+            closest, d = geo.closest_on_segments(points[:, None, :], qa[idx], qb[idx])
+            rel = closest - points[:, None, :]
+            scale = np.where(d > 0, (d - qr[idx]) / np.where(d > 0, d, 1.0), 0.0)
+            parts_off.append(rel * scale[..., None])
+            parts_d.append(np.maximum(d - qr[idx], 0.0))
+        if not parts_d:
+            return np.zeros((len(points), 0, 2)), np.zeros((len(points), 0))
+        return np.concatenate(parts_off, axis=1), np.concatenate(parts_d, axis=1)
+
+    def raycast(self, origins: FloatArray, directions: FloatArray, max_range: float
+                ) -> FloatArray:
+        """Distance (m) along rays to static geometry, capped at ``max_range``.
+
+        Args:
+            origins: (P, 2) ray starts.
+            directions: (P, R, 2) unit ray directions.
+            max_range: the sensor's range (m); no hit reads ``max_range``.
+        """
+        best = np.full(directions.shape[:2], np.inf)
+        o = origins[:, None, :]
+        if self.box is not None:
+            x0, y0, x1, y1 = self.box
+            dx, dy = directions[..., 0], directions[..., 1]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                tx = np.where(dx > 0, (x1 - o[..., 0]) / dx,
+                              np.where(dx < 0, (x0 - o[..., 0]) / dx, np.inf))
+                ty = np.where(dy > 0, (y1 - o[..., 1]) / dy,
+                              np.where(dy < 0, (y0 - o[..., 1]) / dy, np.inf))
+            best = np.maximum(np.minimum(tx, ty), 0.0)
+        if len(self._qr):
+            qa, qb, qr = self._query_arrays()
+            idx = self._candidates(origins, max_range)  # (P, C)
+            hit = geo.ray_capsules(o[:, :, None, :], directions[:, :, None, :],
+                                   qa[idx][:, None], qb[idx][:, None], qr[idx][:, None])
+            best = np.minimum(best, hit.min(axis=2))
+        if self.grid is not None:
+            best = np.where(self.grid.occupied(origins)[:, None], 0.0, best)
+        return np.minimum(best, max_range)
+
+    # -------------------------------------------------------------- checks
+    def blocked(self, starts: FloatArray, ends: FloatArray, clearance: float = 0.0, *,
+                use_grid: bool = True) -> tuple[BoolArray, npt.NDArray[np.intp]]:
+        """Whether each segment ``starts``–``ends`` (L, 2) passes within ``clearance`` of a
+        capsule or polygon (the box's walls are not obstacles to a segment inside it), and
+        the index of the shape (into :attr:`names`; −1 where clear). With ``use_grid`` a
+        map's cells are sampled along the segment too (a segment between two free points
+        cannot cross occupied cells without crossing a contour, so without it only the
+        contours are tested)."""
+        starts, ends = np.atleast_2d(starts).astype(float), np.atleast_2d(ends).astype(float)
+        out = np.zeros(len(starts), dtype=bool)
+        which = np.full(len(starts), -1, dtype=np.intp)
+        chunk = max(1, 1_000_000 // max(len(self._qr), 1))  # bounds the (L, S) temporaries
+        for lo in range(0, len(starts) if len(self._qr) else 0, chunk):
+            sl = slice(lo, lo + chunk)
+            d = geo.segments_distance(starts[sl, None], ends[sl, None], self._qa[None],
+                                      self._qb[None]) - self._qr[None]
+            hit = d < clearance
+            out[sl] = hit.any(axis=1)
+            which[sl] = np.where(out[sl], self._owner[np.argmax(hit, axis=1)], -1)
+        for k, poly in enumerate(self.polygons):  # a segment wholly inside a block
+            inside = geo.points_in_polygon(starts, poly) | geo.points_in_polygon(ends, poly)
+            fresh = inside & ~out
+            which[fresh] = len(self.radius) + k
+            out |= inside
+        if self.grid is not None and use_grid:
+            for i in np.flatnonzero(~out):
+                n = max(2, math.ceil(geo.norm(ends[i] - starts[i]) / self.grid.resolution * 2))
+                t = np.linspace(0.0, 1.0, n)[:, None]
+                if self.grid.occupied(starts[i] + t * (ends[i] - starts[i])).any():
+                    out[i] = True
+        return out, which
+
+    def box_clearance(self, points: FloatArray) -> FloatArray:
+        """Distance (P,) from each point to the box's walls (inf without a box)."""
+        if self.box is None:
+            return np.full(len(points), np.inf)
+        return self._box_gaps(np.atleast_2d(np.asarray(points, dtype=float))).min(axis=1)
+
+    def nearest_name(self, point: FloatArray) -> str:
+        """The name of the static shape nearest to ``point`` (2,)."""
+        p = np.asarray(point, dtype=float).reshape(1, 2)
+        best, name = np.inf, "nothing"
+        if self.box is not None:
+            gaps = self._box_gaps(p)[0]
+            best, name = float(gaps.min()), f"the {BOX_WALLS[int(np.argmin(gaps))]} wall"
+        if len(self._qr):
+            d = geo.closest_on_segments(p, self._qa, self._qb)[1] - self._qr
+            k = int(np.argmin(d))
+            if d[k] < best:
+                best, name = float(d[k]), self.names[self._owner[k]]
+        if self.grid is not None and self.grid.occupied(p)[0]:
+            name = "an occupied map cell"
+        return name
+
+    def box_wall_name(self, points: FloatArray, margin: float) -> str | None:
+        """The name of a box wall within ``margin`` of some point (None if none is)."""
+        if self.box is None:
+            return None
+        gaps = self._box_gaps(np.atleast_2d(points))
+        close = np.argwhere(gaps < margin)
+        if not len(close):
+            return None
+        return f"the {BOX_WALLS[close[0][1]]} wall"
+
+
+def _build_index(scene: Scene, reach: float
+                 ) -> tuple[FloatArray, tuple[int, int], npt.NDArray[np.intp]]:
+    """A grid over the scene's bounds: for each cell the query capsules within ``reach`` of
+    any point of the cell (conservatively, from the cell's centre)."""
+    x0, y0, x1, y1 = scene.bounds
+    margin = reach + INDEX_CELL
+    origin = np.array([x0 - margin, y0 - margin])
+    nx = max(1, math.ceil((x1 - x0 + 2 * margin) / INDEX_CELL))
+    ny = max(1, math.ceil((y1 - y0 + 2 * margin) / INDEX_CELL))
+    gx, gy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    centres = origin + (np.stack([gx.ravel(), gy.ravel()], axis=1) + 0.5) * INDEX_CELL
+    qa, qb, qr = scene._qa, scene._qb, scene._qr
+    lists = []
+    for start in range(0, len(centres), 512):
+        c = centres[start:start + 512]
+        _, d = geo.closest_on_segments(c[:, None, :], qa[None], qb[None])
+        near = d - qr[None] <= reach + INDEX_CELL * math.sqrt(0.5)
+        lists += [np.flatnonzero(row) for row in near]
+    width = max(1, max(len(x) for x in lists))
+    table = np.full((len(lists), width), len(qr), dtype=np.intp)  # the dummy capsule
+    for i, x in enumerate(lists):
+        table[i, :len(x)] = x
+    return origin, (nx, ny), table
