@@ -434,19 +434,19 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             return None
         if self._world is None:
             raise RuntimeError("render() called before reset()")
-        from boids_env.render import Renderer, Scene
+        from boids_env.render import Frame, Renderer
 
         if self._renderer is None:
-            self._renderer = Renderer(self.render_mode, self.config.world.arena_half_size)
+            self._renderer = Renderer(self.render_mode, self.config.scene)
             self._renderer.fps = self.metadata["render_fps"]
         world = self._world
         m = self.episode_metrics()
         status = (f"t = {m['duration']:5.1f} s   V_sep {m['V_sep']:.3f}   V_coh {m['V_coh']:.3f}"
                   f"   V_align {m['V_align']:.3f}")
-        scene = Scene(world.positions, world.steps, self.episode_config.world.robot_radius,
+        frame = Frame(world.positions, world.steps, self.episode_config.world.robot_radius,
                       status, self.episode_config.observation.horizon, dict(self.overlays),
                       tuple(self.hud_text))
-        return self._renderer.draw(scene)
+        return self._renderer.draw(frame)
 
     def close(self) -> None:
         if self._renderer is not None:

@@ -1,11 +1,13 @@
-"""pygame renderer: the arena with a 1 m grid, robots, contacts, the leader trail, horizon
-circles and rule-force arrows, and beside it a panel with the HUD (time, V_*, touching
-pairs), a legend, a 1 m scale bar, the live window's controls and its messages.
+"""pygame renderer: the scene (the arena's walls, obstacles, a map's cells) with a 1 m grid,
+robots, contacts, the leader trail, horizon circles and rule-force arrows, and beside it a
+panel with the HUD (time, V_*, touching pairs), a legend, a 1 m scale bar, the live window's
+controls and its messages.
 
-The only module that knows pixels; it draws a plain-data :class:`Scene` (the env builds it)
-and imports no env. Works headless: ``rgb_array`` draws on an off-screen surface; ``human``
-opens a window and raises :class:`NoDisplayError` when there is no display (set
-``SDL_VIDEODRIVER=dummy`` to run a window invisibly on purpose, e.g. in tests).
+The only module that knows pixels; it draws a plain-data :class:`Frame` (the env builds it)
+over a static :class:`~boids_env.world.scene.Scene` and imports no env. Works headless:
+``rgb_array`` draws on an off-screen surface; ``human`` opens a window and raises
+:class:`NoDisplayError` when there is no display (set ``SDL_VIDEODRIVER=dummy`` to run a window
+invisibly on purpose, e.g. in tests).
 """
 
 from __future__ import annotations
@@ -45,12 +47,18 @@ from boids_env.drawing import (
     wrap_text,
 )
 from boids_env.metrics import CONTACT_TOLERANCE, contact_pairs
+from boids_env.world.scene import Scene
 
-__all__ = ["VIEWS", "NoDisplayError", "Renderer", "Scene"]
+__all__ = ["VIEWS", "Frame", "NoDisplayError", "Renderer"]
+
+OBSTACLE = (95, 95, 92)
+"""Obstacles and a map's occupied cells."""
+UNKNOWN = (200, 200, 194)
+"""A map's unknown cells."""
 
 
 @dataclass(frozen=True)
-class Scene:
+class Frame:
     """What one frame shows, as plain data (the env builds it; this module knows no env)."""
 
     positions: npt.NDArray[np.float64]
@@ -71,36 +79,46 @@ class Scene:
 
 
 VIEWS = ("arena", "follow")
-"""``arena``: the whole arena; ``follow``: a camera that follows the flock, zoomed so the
-robots show at their true size, with the whole arena as a map in the panel."""
+"""``arena``: the whole scene; ``follow``: a camera that follows the flock, zoomed so the
+robots show at their true size, with the whole scene as a map in the panel."""
 MIN_VIEW = 1.6
 """Smallest half-width (m) of the ``follow`` view."""
 
 
 class Renderer:
-    """Draws :class:`Scene` frames of one env (created by the env on its first render) or of
-    a recording (:mod:`boids_env.eval.video`).
+    """Draws :class:`Frame` s of one env (created by the env on its first render) or of a
+    recording (:mod:`boids_env.eval.video`).
 
     Args:
         mode: ``human`` (a window) or ``rgb_array`` (returns the frames).
-        arena_half_size: half the arena's side (m).
+        scene: the static scene (a number: the study's empty arena of that half size, m).
         show_horizon: draw each follower's neighbour radius.
         trail_length: control steps of the leader's trail that stay drawn.
         view: one of :data:`VIEWS`.
     """
 
-    def __init__(self, mode: str, arena_half_size: float, *, show_horizon: bool = False,
+    def __init__(self, mode: str, scene: Scene | float, *, show_horizon: bool = False,
                  trail_length: int = 2000, view: str = "arena") -> None:
         if view not in VIEWS:
             raise ValueError(f"view must be one of {VIEWS}, got {view!r}")
+        if not isinstance(scene, Scene):
+            from boids_env.world.scenes import arena
+
+            scene = arena(float(scene))
         self.mode = mode
         self.view = view
-        self.half = arena_half_size
-        self.centre = np.zeros(2)
-        """The middle of the drawn area (m); the arena's centre in the ``arena`` view."""
-        self.view_half = arena_half_size
+        self.static = scene
+        x0, y0, x1, y1 = scene.bounds
+        self.bounds = np.array([[x0, y0], [x1, y1]])
+        self.middle = self.bounds.mean(axis=0)
+        """The scene's centre (m)."""
+        self.half = max(x1 - x0, y1 - y0) / 2
+        """Half the side of the square that holds the scene (m)."""
+        self.centre = self.middle.copy()
+        """The middle of the drawn area (m); the scene's centre in the ``arena`` view."""
+        self.view_half = self.half
         """Half the side of the drawn area (m)."""
-        self.scale = (ARENA - 2 * MARGIN) / (2 * arena_half_size)
+        self.scale = (ARENA - 2 * MARGIN) / (2 * self.half)
         """Pixels per metre of the arena drawing."""
         self.show_horizon = show_horizon
         self.trail_length = trail_length
@@ -142,12 +160,12 @@ class Renderer:
         least = MIN_RADIUS if robots <= 200 else 3
         return max(least, round(robot_radius * self.scale))
 
-    def advance(self, scene: Scene) -> None:
-        """Takes in a scene that is not drawn (a video's skipped step): the leader's trail
+    def advance(self, scene: Frame) -> None:
+        """Takes in a frame that is not drawn (a video's skipped step): the leader's trail
         still passes through it."""
         self._update_trail(scene.steps, np.asarray(scene.positions[0], dtype=float))
 
-    def draw(self, scene: Scene) -> npt.NDArray[np.uint8] | None:
+    def draw(self, scene: Frame) -> npt.NDArray[np.uint8] | None:
         """Draws one frame; returns an (H, W, 3) image in ``rgb_array`` mode."""
         canvas = self._canvas
         positions = np.asarray(scene.positions, dtype=float)
@@ -205,9 +223,11 @@ class Renderer:
                 self.view_half += 0.05 * (need - self.view_half)
         reach = float(np.max(np.abs(positions - self.centre))) + 0.25
         self.view_half = min(max(self.view_half, reach), self.half + 0.5)
-        room = self.half + 0.5 - self.view_half  # the view stays within 0.5 m of the walls
+        # the view stays within 0.5 m of the scene's edges
+        room = np.maximum(self.bounds[1] - self.middle + 0.5 - self.view_half, 0.0)
         self.scale = round((ARENA - 2 * MARGIN) / (2 * self.view_half), 1)
-        self.centre = np.round(np.clip(self.centre, -room, room) * self.scale) / self.scale
+        centre = np.clip(self.centre, self.middle - room, self.middle + room)
+        self.centre = np.round(centre * self.scale) / self.scale
         self._camera_steps = 0
 
     def _draw_background(self) -> Any:
@@ -223,10 +243,10 @@ class Renderer:
             surface.fill(BACKGROUND, rect)
         self._draw_tick_labels(surface)
 
-    def _ticks(self) -> npt.NDArray[np.float64]:
+    def _ticks(self, axis: int) -> npt.NDArray[np.float64]:
         step = grid_step(self.view_half, self.scale)
-        lo = max(-self.half, float(self.centre.min()) - self.view_half)
-        hi = min(self.half, float(self.centre.max()) + self.view_half)
+        lo = max(float(self.bounds[0, axis]), float(self.centre[axis]) - self.view_half)
+        hi = min(float(self.bounds[1, axis]), float(self.centre[axis]) + self.view_half)
         return np.arange(np.ceil(lo / step), np.floor(hi / step) + 1) * step
 
     def _draw_grid(self, surface: Any) -> None:
@@ -234,27 +254,68 @@ class Renderer:
         pygame.draw.rect(surface, PANEL_BACKGROUND, (ARENA, 0, PANEL, HEIGHT))
         pygame.draw.line(surface, (205, 205, 200), (ARENA, 0), (ARENA, HEIGHT), 1)
         surface.set_clip(pygame.Rect(0, 0, ARENA - 1, HEIGHT))
-        low = self.to_px(np.array([-self.half, -self.half]))
-        high = self.to_px(np.array([self.half, self.half]))
+        low, high = self.to_px(self.bounds[0]), self.to_px(self.bounds[1])
         surface.fill(BACKGROUND, (int(low[0]), int(high[1]), int(high[0] - low[0]),
                                   int(low[1] - high[1])))
-        for t in self._ticks():
-            x, y = self.to_px(np.array([t, t]))
-            pygame.draw.line(surface, GRID, (int(x), int(high[1])), (int(x), int(low[1])), 1)
-            pygame.draw.line(surface, GRID, (int(low[0]), int(y)), (int(high[0]), int(y)), 1)
-        side = int(high[0] - low[0])
-        pygame.draw.rect(surface, WALL, (int(low[0]), int(high[1]), side + 1, side + 1), 2)
+        for t in self._ticks(0):
+            x = int(self.to_px(np.array([t, 0.0]))[0])
+            pygame.draw.line(surface, GRID, (x, int(high[1])), (x, int(low[1])), 1)
+        for t in self._ticks(1):
+            y = int(self.to_px(np.array([0.0, t]))[1])
+            pygame.draw.line(surface, GRID, (int(low[0]), y), (int(high[0]), y), 1)
+        self._draw_static(surface, self.to_px, self.scale)
+        if self.static.box is not None:
+            width, height = int(high[0] - low[0]), int(low[1] - high[1])
+            pygame.draw.rect(surface, WALL, (int(low[0]), int(high[1]), width + 1, height + 1), 2)
         surface.set_clip(None)
+
+    def _draw_static(self, surface: Any, to_px: Any, scale: float) -> None:
+        """The scene's obstacles: a map's cells as an image, capsules as thick round-ended
+        lines (pillars as discs), blocks as filled polygons."""
+        scene = self.static
+        grid = scene.grid
+        if grid is not None and grid.origin[2] == 0.0:
+            self._draw_cells(surface, to_px, scale)
+        else:
+            for a, b, r in zip(scene.a, scene.b, scene.radius, strict=True):
+                pa, pb = to_px(a), to_px(b)
+                width = max(1, round(2 * r * scale))
+                if np.any(pa != pb):
+                    pygame.draw.line(surface, OBSTACLE, tuple(pa), tuple(pb), width)
+                for end in (pa, pb):
+                    pygame.draw.circle(surface, OBSTACLE, tuple(end), max(1, round(r * scale)))
+        for poly in scene.polygons:
+            pygame.draw.polygon(surface, OBSTACLE, [tuple(p) for p in to_px(poly)])
+
+    def _draw_cells(self, surface: Any, to_px: Any, scale: float) -> None:
+        grid = self.static.grid
+        assert grid is not None
+        h, w = grid.cells.shape
+        rgb = np.empty((w, h, 3), dtype=np.uint8)  # pygame arrays are (x, y)
+        rgb[...] = BACKGROUND
+        cells = grid.cells[::-1].T  # image rows from the top
+        rgb[cells == 100] = OBSTACLE
+        rgb[cells == -1] = UNKNOWN
+        x0, y0, _ = grid.origin
+        top_left = to_px(np.array([x0, y0 + h * grid.resolution]))
+        size = (max(1, round(w * grid.resolution * scale)), max(1, round(h * grid.resolution
+                                                                         * scale)))
+        image = pygame.transform.scale(pygame.surfarray.make_surface(rgb), size)
+        surface.blit(image, (int(top_left[0]), int(top_left[1])))
 
     def _draw_tick_labels(self, surface: Any) -> None:
         """Grid values (m) in the margins: x along the bottom, y along the left."""
         font = self._fonts[16]
-        ticks = self._ticks()
-        for t in ticks:
+        xs, ys = self._ticks(0), self._ticks(1)
+        for t in np.union1d(xs, ys):
             x, y = self.to_px(np.array([t, t]))
+            if t not in xs:
+                x = -1
+            if t not in ys:
+                y = -1
             label = font.render(f"{t:g}", True, GRID_LABEL)
             if MARGIN <= x <= ARENA - MARGIN:
-                shown = font.render(f"{t:g} m", True, GRID_LABEL) if t == ticks[-1] else label
+                shown = font.render(f"{t:g} m", True, GRID_LABEL) if t == xs[-1] else label
                 surface.blit(shown, (int(x) - label.get_width() // 2, HEIGHT - MARGIN + 5))
             if MARGIN <= y <= HEIGHT - MARGIN:
                 surface.blit(label, (MARGIN - label.get_width() - 4,
@@ -293,7 +354,7 @@ class Renderer:
                 draw_arrow(canvas, colour, a, b)
 
     # ----------------------------------------------------------------------------- panel
-    def _draw_panel(self, canvas: Any, scene: Scene, touching: int) -> None:
+    def _draw_panel(self, canvas: Any, scene: Frame, touching: int) -> None:
         left, width = ARENA + 14, PANEL - 26
         y = 12
         y = self._text(canvas, "boids-env", (left, y), 26, TEXT) + 6
@@ -318,16 +379,28 @@ class Renderer:
 
     def _draw_map(self, canvas: Any, positions: npt.NDArray[np.float64], left: int, top: int,
                   side: int) -> None:
-        """The whole arena, small: the leader's trail, the robots and the zoomed view."""
+        """The whole scene, small: its obstacles, the leader's trail, the robots and the
+        zoomed view."""
         side = min(side, HEIGHT - 8 - top)
         k = (side - 2) / (2 * self.half)
+        cx, cy = self.middle
+
+        def to_map(points: npt.NDArray[np.float64]) -> npt.NDArray[np.int64]:
+            p = np.asarray(points, dtype=float)
+            out = np.empty(p.shape, dtype=np.int64)
+            out[..., 0] = np.rint(left + 1 + (p[..., 0] - cx + self.half) * k)
+            out[..., 1] = np.rint(top + 1 + (self.half - p[..., 1] + cy) * k)
+            return out
 
         def px(points: npt.NDArray[np.float64]) -> list[tuple[int, int]]:
-            p = np.atleast_2d(points)
-            return [(round(left + 1 + (x + self.half) * k), round(top + 1 + (self.half - y) * k))
-                    for x, y in p]
+            return [tuple(p) for p in to_map(np.atleast_2d(points)).tolist()]
 
-        pygame.draw.rect(canvas, BACKGROUND, (left, top, side, side))
+        pygame.draw.rect(canvas, OUTSIDE, (left, top, side, side))
+        (bx0, by0), (bx1, by1) = px(self.bounds)
+        pygame.draw.rect(canvas, BACKGROUND, (bx0, by1, bx1 - bx0, by0 - by1))
+        canvas.set_clip(pygame.Rect(left, top, side, side))
+        self._draw_static(canvas, to_map, k)
+        canvas.set_clip(None)
         pygame.draw.rect(canvas, WALL, (left, top, side, side), 1)
         if len(self._trail) > 1:
             pygame.draw.lines(canvas, style.TRAIL, False, px(np.array(self._trail)), 2)
@@ -339,9 +412,9 @@ class Renderer:
                                           self.centre + self.view_half]))
         rect = pygame.Rect(x0, y1, x1 - x0, y0 - y1).clip(pygame.Rect(left, top, side, side))
         pygame.draw.rect(canvas, MUTED, rect, 1)
-        self._text(canvas, "whole arena (box: view)", (left + 4, top + 3), 16, MUTED)
+        self._text(canvas, "whole scene (box: view)", (left + 4, top + 3), 16, MUTED)
 
-    def _legend(self, canvas: Any, scene: Scene, left: int, y: int) -> int:
+    def _legend(self, canvas: Any, scene: Frame, left: int, y: int) -> int:
         radius = self.robot_radius_px(scene.robot_radius, len(scene.positions))
         rows: list[tuple[str, Any]] = [
             ("leader (robot 0)", lambda c: pygame.draw.circle(canvas, style.LEADER, c,

@@ -11,7 +11,11 @@ Topics, one message per control step (10 Hz) stamped ``start`` + the episode tim
 - ``/markers/robots`` (visualization_msgs/MarkerArray: spheres of the robots' true size, the
   leader red) and ``/markers/forces`` (the policy's rule forces as arrows, when recorded);
 - ``/leader/path`` (nav_msgs/Path: the leader's scripted path, latched, repeated every
-  second), which :func:`read_bag` reads back for the leader's path deviation.
+  second), which :func:`read_bag` reads back for the leader's path deviation;
+- ``/map`` (nav_msgs/OccupancyGrid: the scene as ``map_server`` publishes a map, latched,
+  once at the start: a map scene's own cells, any other scene rasterised at 5 cm) and
+  ``/markers/obstacles`` (visualization_msgs/MarkerArray: walls and blocks as lines, pillars
+  as cylinders; latched, once).
 
 Pure Python through the ``rosbags`` package (``pip install 'boids-env[ros]'``); no ROS
 install needed. ROS 2 bags carry Humble's message definitions (Jazzy's are the same on the
@@ -59,6 +63,9 @@ TF = "tf2_msgs/msg/TFMessage"
 MARKERS = "visualization_msgs/msg/MarkerArray"
 PATH = "nav_msgs/msg/Path"
 PATH_TOPIC = "/leader/path"
+GRID = "nav_msgs/msg/OccupancyGrid"
+MAP_TOPIC = "/map"
+OBSTACLES_TOPIC = "/markers/obstacles"
 _TOPIC = re.compile(r"^/robot_(\d+)/(odom|cmd_vel)$")
 _TF_ROS1 = "geometry_msgs/TransformStamped[] transforms\n"
 """tf2_msgs/TFMessage in ROS 1, which rosbags' Noetic store lacks."""
@@ -122,6 +129,12 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
     forces = connect("/markers/forces", MARKERS) if recording.forces else None
     route = connect(PATH_TOPIC, PATH, **latched) if recording.leader_path is not None else None
     build = Messages(store, ros1, recording.config.world.robot_radius)
+    scene = recording.config.scene
+    first = origin + round(float(recording.time[0]) * 1e9)
+    writer.write(connect(MAP_TOPIC, GRID, **latched), first,
+                 serialize(build.occupancy_grid(first, scene.occupancy()), GRID))
+    writer.write(connect(OBSTACLES_TOPIC, MARKERS, **latched), first,
+                 serialize(build.obstacle_markers(first, scene), MARKERS))
     yaws = headings(recording.commanded, recording.velocities)
     per_second = max(1, round(1.0 / recording.config.world.dt))
     for step, offset in enumerate(recording.time):

@@ -176,6 +176,53 @@ class Messages:
                                            ends))
         return self.t["visualization_msgs/msg/MarkerArray"](markers=markers)
 
+    def occupancy_grid(self, ns: int, grid: Any) -> Any:
+        """nav_msgs/OccupancyGrid of a scene's cells (an :class:`OccupancyGrid`), as
+        ``map_server`` publishes ``/map``: row 0 at the origin, 0 free, 100 occupied, −1
+        unknown."""
+        t = self.t
+        h, w = grid.cells.shape
+        x0, y0, yaw = grid.origin
+        info = t["nav_msgs/msg/MapMetaData"](
+            map_load_time=self.time(ns), resolution=float(grid.resolution), width=w, height=h,
+            origin=self.pose(float(x0), float(y0), float(yaw)))
+        return t["nav_msgs/msg/OccupancyGrid"](header=self.header(ns, 0), info=info,
+                                               data=grid.cells.reshape(-1).astype(np.int8))
+
+    def obstacle_markers(self, ns: int, scene: Any) -> Any:
+        """visualization_msgs/MarkerArray of a scene's static geometry: the box's walls, the
+        segments and the blocks' edges as one LINE_LIST (namespace ``walls``), each round
+        pillar as a CYLINDER (namespace ``pillars``)."""
+        header = self.header(ns, 0)
+        point = self.t["geometry_msgs/msg/Point"]
+        colour = self.t["std_msgs/msg/ColorRGBA"](0.37, 0.37, 0.36, 1.0)
+        lines: list[Any] = []
+
+        def add(a: FloatArray, b: FloatArray) -> None:
+            lines.extend([point(x=float(a[0]), y=float(a[1]), z=0.0),
+                          point(x=float(b[0]), y=float(b[1]), z=0.0)])
+
+        if scene.box is not None:
+            x0, y0, x1, y1 = scene.box
+            corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+            for k in range(4):
+                add(corners[k], corners[(k + 1) % 4])
+        markers = []
+        for k, (a, b, r) in enumerate(zip(scene.a, scene.b, scene.radius, strict=True)):
+            if np.all(a == b):
+                markers.append(self.marker(header, "pillars", k, 3, 0,  # CYLINDER, ADD
+                                           self.pose(float(a[0]), float(a[1]), 0.0),
+                                           (2 * float(r), 2 * float(r), 0.3), colour, []))
+            else:
+                add(a, b)
+        for poly in scene.polygons:
+            for k in range(len(poly)):
+                add(poly[k], poly[(k + 1) % len(poly)])
+        if lines:
+            markers.insert(0, self.marker(header, "walls", 0, 5, 0, self.pose(0.0, 0.0, 0.0),
+                                          (0.05, 0.0, 0.0), colour, lines))  # LINE_LIST
+        return self.t["visualization_msgs/msg/MarkerArray"](markers=markers)
+
     def path(self, ns: int, seq: int, points: FloatArray) -> Any:
         """nav_msgs/Path of the leader's scripted path (a polyline in the map frame)."""
         header = self.header(ns, seq)

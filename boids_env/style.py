@@ -25,10 +25,12 @@ RULE_COLOURS: dict[str, Colour] = {
     "cohesion": (44, 160, 44),  # green
     "alignment": (148, 103, 189),  # purple
     "leader": (120, 72, 40),  # brown: pulls towards the (red) leader
+    "obstacle": (227, 119, 194),  # pink: away from walls and obstacles (beyond the study)
 }
 """Arrow colour of each Reynolds rule's force."""
 RULE_LABELS = {"separation": "separation force", "cohesion": "cohesion force",
-               "alignment": "alignment force", "leader": "leader term"}
+               "alignment": "alignment force", "leader": "leader term",
+               "obstacle": "obstacle force"}
 """Legend text of each rule's arrow."""
 OTHER_ARROW: Colour = (90, 90, 90)
 """Arrow colour of an overlay that is not a Reynolds rule."""

@@ -24,6 +24,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     _eval_parser(sub)
     _report_parser(sub)
     _ros_parser(sub)
+    _scenes_parser(sub)
 
 
 def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
@@ -42,13 +43,50 @@ def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
     return tuple(points)
 
 
+def parse_point(text: str) -> tuple[float, float]:
+    """``"-4,0"`` -> (-4.0, 0.0); a clear error otherwise."""
+    points = parse_waypoints(text)
+    if len(points) != 1:
+        raise argparse.ArgumentTypeError(f"expected one x,y pair in metres, got {text!r}")
+    return points[0]
+
+
+def parse_setting(text: str) -> tuple[str, Any]:
+    """``"lidar_rays=16"`` -> ("lidar_rays", 16): a config field and a JSON value (a bare word
+    is a string); the config checks the field and the value."""
+    import json
+
+    name, eq, raw = text.partition("=")
+    if not eq or not name.strip():
+        raise argparse.ArgumentTypeError(f"--set takes FIELD=VALUE (e.g. lidar_rays=16), got "
+                                         f"{text!r}")
+    try:
+        value = json.loads(raw)
+    except ValueError:
+        value = raw
+    return name.strip(), value
+
+
 def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) -> None:
     """The env-config flags :func:`_env_fields` reads (``boids run``, ``boids ros sim``)."""
-    p.add_argument("--robots", type=int, default=13, help="group size, leader included (13)")
-    p.add_argument("--leader-speed", type=float, default=0.55, help="m/s (0.55)")
-    p.add_argument("--path", choices=PATHS, default="square", help=path_help)
+    p.add_argument("--robots", type=int, default=None, help="group size, leader included (13)")
+    p.add_argument("--leader-speed", type=float, default=None, help="m/s (0.55)")
+    p.add_argument("--scene", default=None,
+                   help="arena (the study's, default), small_room, doorway, corridor, pillars, "
+                   "lab, or a shapes file (.toml/.json); sets the scene's leader path and start "
+                   "(boids scenes lists them)")
+    p.add_argument("--map", default=None, metavar="YAML",
+                   help="a ROS map_server map (YAML + PGM/PNG) as the scene")
+    p.add_argument("--path", choices=PATHS, default=None, help=path_help)
     p.add_argument("--waypoints", type=parse_waypoints, default=None,
-                   help='targets for --path waypoints, "x,y x,y ..." in metres')
+                   help='targets for --path waypoints, "x,y x,y ..." in metres (world frame)')
+    p.add_argument("--start", type=parse_point, default=None, metavar="X,Y",
+                   help="where the leader starts (m; the scene's, or 0,0)")
+    p.add_argument("--start-heading", type=float, default=None, metavar="DEG",
+                   help="direction the leader faces at the start; the grid lies behind it")
+    p.add_argument("--set", type=parse_setting, action="append", default=[],
+                   metavar="FIELD=VALUE", help="any env config field (e.g. lidar_rays=16, "
+                   "static_slots=2, obs_noise=0.02); repeatable")
     p.add_argument("--seed", type=int, default=0, help=seed_help)
     p.add_argument("--max-cycles", type=int, default=None, help="hard step limit")
     p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
@@ -128,12 +166,19 @@ def _policy_extras(specs: list[str]) -> list[str]:
 
 
 def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
-    fields: dict[str, Any] = {"robots": args.robots, "leader_speed": args.leader_speed,
-                              "path": args.path}
+    fields: dict[str, Any] = {}
+    for name in ("robots", "leader_speed", "path", "scene", "start", "start_heading"):
+        if getattr(args, name) is not None:
+            fields[name] = getattr(args, name)
+    if args.map is not None:
+        if args.scene is not None:
+            raise ValueError("give --scene or --map, not both (a map is a scene)")
+        fields["scene"] = args.map
     if args.path == "waypoints" and args.waypoints is None:
         raise ValueError("--path waypoints needs --waypoints \"x,y x,y ...\" (metres)")
     if args.waypoints is not None:
         fields["waypoints"] = args.waypoints
+        fields.setdefault("path", "waypoints")
     if args.max_cycles is not None:
         fields["max_cycles"] = args.max_cycles
     if args.arena_half_size is not None:
@@ -142,6 +187,20 @@ def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
         fields["wrap_alignment"] = False
     if args.realism is not None:
         fields["realism"] = args.realism
+    return _with_settings(fields, args.set)
+
+
+def _with_settings(fields: dict[str, Any], settings: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``fields`` plus the ``--set FIELD=VALUE`` ones, checked as a whole config before
+    anything is written."""
+    from boids_env.config import EnvConfig
+
+    for name, value in settings:
+        if name in fields:
+            raise ValueError(f"--set {name}=... repeats a field given by its own flag")
+        fields[name] = tuple(map(tuple, value)) if name == "waypoints" else (
+            tuple(value) if name == "start" and isinstance(value, list) else value)
+    EnvConfig.from_kwargs(**fields)
     return fields
 
 
@@ -267,6 +326,24 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from boids_env.eval.report import build_report
 
     print(f"wrote {build_report(args.dir)}")
+    return 0
+
+
+def _scenes_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("scenes", help="list the built-in scenes (walls, obstacles, maps)",
+                       description="The built-in scenes with their leader paths; any of them "
+                       "goes to boids run --scene NAME, a ROS map to --map lab.yaml.")
+    p.set_defaults(func=_cmd_scenes)
+
+
+def _cmd_scenes(args: argparse.Namespace) -> int:
+    from boids_env.config import EnvConfig
+    from boids_env.world.scenes import describe
+
+    for name, text in describe().items():
+        sc = EnvConfig.from_kwargs(scene=name).scenario
+        path = sc.path if sc.path != "waypoints" else f"waypoints from {sc.start}"
+        print(f"{name:<11} {text}\n{'':<11} leader path: {path}")
     return 0
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -188,11 +189,13 @@ def follower_bars(rows: pd.DataFrame, metrics: Sequence[str], title: str, path: 
 
 def trajectories(recording: Recording, title: str, path: Path) -> Path:
     """The leader's path (red; its scripted path dashed), every follower's (thin blue) and
-    their starts, in the arena, axes in metres."""
+    their starts, in the scene (its walls and obstacles grey), axes in metres."""
     pos = recording.positions
-    h = recording.config.world.arena_half_size
+    scene = recording.config.scene
+    x0, y0, x1, y1 = scene.bounds
     leader, follower = style.rgb01(style.LEADER), style.rgb01(style.FOLLOWER)
     fig, ax = plt.subplots(figsize=(4.4, 4.9))
+    draw_scene(ax, scene)
     if recording.leader_path is not None:
         ax.plot(*recording.leader_path.T, ls="--", lw=0.9, color="0.45",
                 label="leader's scripted path")
@@ -202,8 +205,8 @@ def trajectories(recording: Recording, title: str, path: Path) -> Path:
     ax.plot(pos[:, 0, 0], pos[:, 0, 1], lw=1.4, color=leader, label="leader")
     ax.scatter(pos[0, 1:, 0], pos[0, 1:, 1], s=5, color=follower, zorder=3)
     ax.scatter(*pos[0, 0], s=14, color=leader, zorder=3, label="start")
-    ax.set_xlim(-h, h)
-    ax.set_ylim(-h, h)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -212,6 +215,47 @@ def trajectories(recording: Recording, title: str, path: Path) -> Path:
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncols=2,
               frameon=False)  # below the arena, off the paths
     return save(fig, path)
+
+
+def draw_scene(ax: Any, scene: Any) -> None:
+    """A scene's static geometry on matplotlib axes: a map's occupied (dark) and unknown
+    (light) cells, capsules as thick lines with round ends (pillars as discs), blocks
+    filled."""
+    grey = "0.42"
+    if scene.grid is not None and scene.grid.origin[2] == 0.0:
+        grid = scene.grid
+        h, w = grid.cells.shape
+        gx0, gy0, _ = grid.origin
+        shade = np.where(grid.cells == 100, 0.42, np.where(grid.cells == -1, 0.8, 1.0))
+        ax.imshow(shade, cmap="gray", vmin=0, vmax=1, origin="lower", interpolation="nearest",
+                  extent=(gx0, gx0 + w * grid.resolution, gy0, gy0 + h * grid.resolution),
+                  zorder=0)
+    else:
+        from matplotlib.patches import Circle
+
+        for a, b, r in zip(scene.a, scene.b, scene.radius, strict=True):
+            if np.all(a == b):
+                ax.add_patch(Circle(tuple(a), float(r), color=grey, lw=0, zorder=1))
+            else:
+                ax.add_patch(_capsule(a, b, float(r), grey))
+    for poly in scene.polygons:
+        ax.fill(poly[:, 0], poly[:, 1], color=grey, lw=0, zorder=1)
+    if scene.box is not None:
+        bx0, by0, bx1, by1 = scene.box
+        ax.plot([bx0, bx1, bx1, bx0, bx0], [by0, by0, by1, by1, by0], color="0.15", lw=1.2)
+
+
+def _capsule(a: np.ndarray, b: np.ndarray, r: float, colour: str) -> Any:
+    """A segment swept by a disc as a matplotlib polygon."""
+    from matplotlib.patches import Polygon
+
+    d = (b - a) / max(float(np.hypot(*(b - a))), 1e-12)
+    angle = np.arctan2(d[1], d[0])
+    half = np.linspace(-np.pi / 2, np.pi / 2, 9)
+    ends = [b + r * np.column_stack([np.cos(angle + half), np.sin(angle + half)]),
+            a + r * np.column_stack([np.cos(angle + np.pi + half),
+                                     np.sin(angle + np.pi + half)])]
+    return Polygon(np.vstack(ends), closed=True, color=colour, lw=0, zorder=1)
 
 
 def policy_bars(table: pd.DataFrame, metric: str, path: Path, title: str | None = None

@@ -94,6 +94,8 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
     name = f"{policy} · preset {preset}" if params is not None else policy
     if env.config.realism.active:
         name += f" · realism {env.config.realism.realism}"
+    if env.config.world.scene != "arena":
+        name += f" · scene {env.config.scene.name}"
     say(f"policy {name} · robots {env.config.scenario.robots} · "
         f"leader {env.config.scenario.leader_speed} m/s · seed {seed} · "
         f"episode {result.wall_time:.2f} s wall")

@@ -204,7 +204,15 @@ GENERALISATION = Suite("generalisation", (
 does not (``unseen``: a path, a group size, speeds and a path size outside the recipe, picked
 before training), 13 robots at 0.55 m/s on the study's square otherwise."""
 
-SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION}
+SCENES = Suite("scenes", tuple(
+    Case(name, "scenes", "scene", name, {} if name == "arena" else {"scene": name})
+    for name in ("arena", "small_room", "doorway", "corridor", "pillars", "lab")))
+"""Every built-in scene with its own leader path and start, 13 robots at 0.55 m/s: walls near
+the path, a door, a corridor loop, a pillar field and a lab's map. The Reynolds policy
+avoids obstacles in all but the arena."""
+
+SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION,
+          "scenes": SCENES}
 
 
 def load_suite(spec: str | Path) -> Suite:

@@ -73,18 +73,18 @@ def frames(recording: Recording, *, frame_every: int = FRAME_EVERY, view: str = 
            ) -> Iterator[npt.NDArray[np.uint8]]:
     """Frames (H, W, 3) of every ``frame_every``-th sample and of the last one, drawn by the
     renderer (``view``: ``follow`` or ``arena``); the leader's trail covers every sample."""
-    from boids_env.render import Renderer, Scene
+    from boids_env.render import Frame, Renderer
 
     if isinstance(frame_every, bool) or not isinstance(frame_every, int) or frame_every < 1:
         raise ValueError(f"frame_every must be an integer >= 1, got {frame_every!r}")
     cfg = recording.config
-    renderer = Renderer("rgb_array", cfg.world.arena_half_size, view=view)
+    renderer = Renderer("rgb_array", cfg.scene, view=view)
     status = running_status(recording)
     last = len(recording.time) - 1
     try:
         for s in range(last + 1):
             overlays = {name: vec[s] for name, vec in (recording.forces or {}).items()}
-            scene = Scene(recording.positions[s], s, cfg.world.robot_radius, status[s],
+            scene = Frame(recording.positions[s], s, cfg.world.robot_radius, status[s],
                           cfg.observation.horizon, overlays)
             shown = s % frame_every == 0 or s == last
             if shown:

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.world.scene import OccupancyGrid, Scene
+from boids_env.world.scene import STUDY_DEFAULTS, OccupancyGrid, Scene
 
 MAX_YAML_BYTES = 64 * 1024
 """A map YAML larger than this is refused (they are a few hundred bytes)."""
@@ -181,7 +181,8 @@ def load_map(path: str | Path, name: str | None = None) -> Scene:
     h, w = cells.shape
     return Scene(name or str(path), f"map {path.name}: {w} × {h} cells of "
                  f"{fields['resolution']:g} m", a=starts, b=ends,
-                 radius=np.full(len(starts), CONTOUR_RADIUS), names=tuple(names), grid=grid)
+                 radius=np.full(len(starts), CONTOUR_RADIUS), names=tuple(names), grid=grid,
+                 defaults=dict(STUDY_DEFAULTS))
 
 
 def write_map(path: str | Path, cells: npt.NDArray[np.int8], resolution: float,

@@ -148,13 +148,16 @@ class Scene:
         if self.box is not None:
             return self.box
         if "bounds" not in self._cache:
-            pts = np.concatenate([self._qa - self._qr[:, None], self._qa + self._qr[:, None],
-                                  self._qb - self._qr[:, None], self._qb + self._qr[:, None]])
-            if self.grid is not None:
+            if self.grid is not None:  # a map: its cells' extent (its border is a wall)
                 h, w = self.grid.cells.shape
-                x0, y0, _ = self.grid.origin
-                pts = np.concatenate([pts, [[x0, y0], [x0 + w * self.grid.resolution,
-                                                       y0 + h * self.grid.resolution]]])
+                x0, y0, yaw = self.grid.origin
+                c, s = math.cos(yaw), math.sin(yaw)
+                local = np.array([[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]]) * self.grid.resolution
+                pts = np.column_stack([x0 + c * local[:, 0] - s * local[:, 1],
+                                       y0 + s * local[:, 0] + c * local[:, 1]])
+            else:
+                r = self._qr[:, None]
+                pts = np.concatenate([self._qa - r, self._qa + r, self._qb - r, self._qb + r])
             lo, hi = pts.min(axis=0), pts.max(axis=0)
             self._cache["bounds"] = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
         return self._cache["bounds"]
@@ -385,6 +388,27 @@ class Scene:
                 if self.grid.occupied(starts[i] + t * (ends[i] - starts[i])).any():
                     out[i] = True
         return out, which
+
+    def occupancy(self, resolution: float = 0.05) -> OccupancyGrid:
+        """The scene as a ROS occupancy grid: a map's own cells, else the scene rasterised
+        at ``resolution`` (m per cell) over its bounds plus one cell of wall around (a cell is
+        occupied when its centre lies within half a cell of static geometry)."""
+        if self.grid is not None:
+            return self.grid
+        key = ("occupancy", float(resolution))
+        if key not in self._cache:
+            x0, y0, x1, y1 = self.bounds
+            ox, oy = x0 - resolution, y0 - resolution
+            w = max(1, math.ceil((x1 - x0) / resolution)) + 2
+            h = max(1, math.ceil((y1 - y0) / resolution)) + 2
+            gx, gy = np.meshgrid(ox + (np.arange(w) + 0.5) * resolution,
+                                 oy + (np.arange(h) + 0.5) * resolution)
+            centres = np.stack([gx.ravel(), gy.ravel()], axis=1)
+            occupied = self.within(centres, resolution / 2 - 1e-9).reshape(h, w)
+            outside = ((gx < x0) | (gx > x1) | (gy < y0) | (gy > y1)) & (self.box is not None)
+            cells = np.where(occupied | outside, 100, 0).astype(np.int8)
+            self._cache[key] = OccupancyGrid(cells, float(resolution), (ox, oy, 0.0))
+        return self._cache[key]
 
     def box_clearance(self, points: FloatArray) -> FloatArray:
         """Distance (P,) from each point to the box's walls (inf without a box)."""

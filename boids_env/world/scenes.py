@@ -109,8 +109,8 @@ def lab() -> Scene:
     from boids_env.world.maps import load_map
 
     scene = load_map(DATA / "lab.yaml", name="lab")
-    return Scene("lab", "a 12 m × 10 m lab floor plan (ROS map, 240 × 200 cells of 5 cm): "
-                 "desks, a meeting room, a corridor to the workshop",
+    return Scene("lab", "a 12 m × 10 m lab floor plan (ROS map, 240 × 200 cells of 5 cm): desks, "
+                 "a desk island, a column, a workshop behind a wall with two doors",
                  a=scene.a, b=scene.b, radius=scene.radius, names=scene.names, grid=scene.grid,
                  defaults=_defaults(path="waypoints", waypoints=LAB_PATH, start=(-3.5, -2.5),
                                     start_heading=90.0))

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from boids_env.config import EnvConfig
-from boids_env.eval.episode import env_fields_for
+from boids_env.eval.episode import bind_policy, env_fields_for
 from boids_env.eval.ros import reconfigure
 from boids_env.eval.ros.messages import Messages, publisher
 from boids_env.eval.ros.protocol import (
@@ -120,6 +120,8 @@ class ControllerNode:
         base = self._base_config()
         self.config = base.replace(**env_fields_for(self.policy, {}))
         self.observer = Observer(self.config)
+        self.layout = self.observer.layout
+        bind_policy(self.policy, self)  # the layout and scene (obstacle avoidance), as an env
         self.stale: StaleObservations | None = None
         self.robots = self.config.scenario.robots
         self.dt = self.config.world.dt

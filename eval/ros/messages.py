@@ -60,6 +60,25 @@ class Messages:
     def clock(self, stamp_ns: int) -> Any:
         return self.Clock(clock=self.time(stamp_ns))
 
+    def occupancy_grid(self, grid: Any, stamp_ns: int) -> tuple[Any, Any]:
+        """``/map`` and ``/map_metadata`` of a scene's cells (an
+        :class:`~boids_env.world.scene.OccupancyGrid`), as ``map_server`` publishes them."""
+        import math
+
+        from geometry_msgs.msg import Pose
+        from nav_msgs.msg import MapMetaData, OccupancyGrid
+
+        h, w = grid.cells.shape
+        x0, y0, yaw = grid.origin
+        info = MapMetaData(map_load_time=self.time(stamp_ns), resolution=grid.resolution,
+                           width=w, height=h, origin=Pose())
+        info.origin.position.x, info.origin.position.y = float(x0), float(y0)
+        info.origin.orientation.z, info.origin.orientation.w = math.sin(yaw / 2), math.cos(
+            yaw / 2)
+        msg = OccupancyGrid(info=info, data=grid.cells.reshape(-1).tolist())
+        msg.header.stamp, msg.header.frame_id = self.time(stamp_ns), MAP_FRAME
+        return msg, info
+
     def odometry(self, robot: int, stamp: Any, position: FloatArray, velocity: FloatArray
                  ) -> Any:
         """``robot``'s Odometry: position and measured velocity in the map frame, identity

@@ -1,7 +1,8 @@
 """``boids ros sim``: the pymunk world (:class:`~boids_env.environment.BoidsEnv`) as a ROS 1
 node in place of the study's Stage simulator.
 
-Publishes, for every robot k, ``/robot_k/odom`` (latched) once per control period, ``/tf``
+Publishes the scene as ``map_server`` does (``/map``, ``/map_metadata``, latched, once) and,
+for every robot k, ``/robot_k/odom`` (latched) once per control period, ``/tf``
 (``map`` → ``robot_k``), ``/clock`` (sets ``/use_sim_time``), and the scripted leader's command
 on ``/robot_0/cmd_vel`` (as the study's leader controller did; with ``--path external`` the
 sim subscribes to it instead, for a teleop). Subscribes to every follower's
@@ -147,6 +148,14 @@ class SimNode:
         self.board = CommandBoard(self.robots - 1, options.cmd_timeout)
         self._leader_command = np.zeros(2)
         self.clock_pub = publisher(rospy, "/clock", Clock, latch=True)
+        # the scene as map_server publishes a map: latched, once
+        from nav_msgs.msg import MapMetaData, OccupancyGrid
+
+        grid, meta = self.msgs.occupancy_grid(config.scene.occupancy(), period_ns(CLOCK_START))
+        self.map_pub = publisher(rospy, "/map", OccupancyGrid, latch=True)
+        self.map_meta_pub = publisher(rospy, "/map_metadata", MapMetaData, latch=True)
+        self.map_pub.publish(grid)
+        self.map_meta_pub.publish(meta)
         self.tf_pub = publisher(rospy, "/tf", TFMessage)
         self.odom_pubs = [publisher(rospy, odom_topic(k), Odometry, latch=True)
                           for k in range(self.robots)]

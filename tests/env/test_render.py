@@ -9,7 +9,7 @@ import pytest
 
 from boids_env import style
 from boids_env.drawing import ARENA, HEIGHT, MIN_RADIUS, WIDTH, draw_arrow, wrap_text
-from boids_env.render import Renderer, Scene
+from boids_env.render import Frame, Renderer
 
 RADIUS = 0.036
 
@@ -19,7 +19,7 @@ def _count(image, colour, tol=10):
 
 
 def _scene(positions, **kwargs):
-    return Scene(np.asarray(positions, dtype=float), 5, RADIUS,
+    return Frame(np.asarray(positions, dtype=float), 5, RADIUS,
                  "t =   0.5 s   V_sep 0.100   V_coh 0.000   V_align 0.200", **kwargs)
 
 

@@ -60,10 +60,13 @@ def test_headings_follow_the_command_then_the_velocity_and_are_kept_when_still()
 def test_every_topic_at_10_hz_from_the_given_start(bags, recording, name):
     msgs = _messages(bags / name)
     steps, n = recording.positions.shape[:2]
-    topics = {"/clock", "/tf", "/markers/robots", "/markers/forces", "/leader/path",
+    once = {"/map", "/markers/obstacles"}
+    topics = {"/clock", "/tf", "/markers/robots", "/markers/forces", "/leader/path", *once,
               *(f"/robot_{k}/{kind}" for k in range(n) for kind in ("odom", "cmd_vel"))}
     assert set(msgs) == topics, set(msgs) ^ topics
-    for topic in topics - {"/leader/path"}:
+    for topic in once:
+        assert [s for s, _ in msgs[topic]] == [START_NS], f"{topic}: latched, once, at start"
+    for topic in topics - {"/leader/path"} - once:
         stamps = np.array([s for s, _ in msgs[topic]])
         assert len(stamps) == steps, topic
         assert stamps[0] == START_NS, f"{topic} starts at --bag-start, not 1970"
@@ -96,7 +99,7 @@ def test_tf_odometry_and_markers_show_the_flock(bags, recording, name):
     colour = spheres[0].color
     assert (colour.r, colour.g, colour.b) == pytest.approx(style.rgb01(style.LEADER)[:3])
     arrows = {(m.ns, m.id): m for m in msgs["/markers/forces"][step][1].markers}
-    assert {ns for ns, _ in arrows} == set(style.RULE_COLOURS)
+    assert {ns for ns, _ in arrows} == set(style.RULE_COLOURS) - {"obstacle"}, "arena: no avoidance"
     sep = arrows[("separation", 3)]
     vec = style.arrow_vectors(recording.forces["separation"][step])[2]
     start, end = sep.points
@@ -123,7 +126,8 @@ def test_ros2_metadata_is_humbles_version_5(bags):
         # Humble reads offered_qos_profiles as a YAML string (version 9 made it a list)
         assert isinstance(meta["offered_qos_profiles"], str), meta
         qos = YAML(typ="safe").load(meta["offered_qos_profiles"])
-        assert qos[0]["durability"] == (1 if meta["name"] == "/leader/path" else 2), meta
+        latched = meta["name"] in ("/leader/path", "/map", "/markers/obstacles")
+        assert qos[0]["durability"] == (1 if latched else 2), meta
         assert "type_description_hash" not in meta
 
 
@@ -186,6 +190,8 @@ def test_the_ros1_reader_reads_every_topic_with_the_official_md5sums(bags):
                 "/clock": "a9c97c1d230cfc112e270351a944ee47",
                 "/markers/robots": "d155b9ce5188fbaf89745847fd5882d7",
                 "/leader/path": "6227e2b7e9cce15051f669a5e197bbf7",
+                "/map": "3381f2d731d4076ec5c71b0759edbe4e",
+                "/markers/obstacles": "d155b9ce5188fbaf89745847fd5882d7",
                 "/robot_0/odom": "cd5e73d190d741a2f92e81eda573aca7"}
     rows = {line.split()[0]: line.split()[2] for line in out.splitlines()
             if line.startswith("/")}

@@ -32,8 +32,9 @@ def test_frames_show_robots_at_a_visible_size_and_every_arrow_colour(recording):
     disc = np.pi * MIN_RADIUS**2
     assert _has(arena, style.LEADER) >= 0.6 * disc, "the leader is a visible red disc"
     assert _has(arena, style.FOLLOWER) >= 6 * 0.6 * disc, "six visible blue followers"
-    for name, colour in style.RULE_COLOURS.items():
-        assert _has(panel, colour) > 10, f"the legend shows the {name} arrow colour"
+    for name in ("separation", "cohesion", "alignment", "leader"):  # the study's rules
+        assert _has(panel, style.RULE_COLOURS[name]) > 10, f"the legend shows {name}"
+    assert _has(panel, style.RULE_COLOURS["obstacle"]) == 0, "no obstacle force in the arena"
     for name in ("separation", "leader"):  # the rules with large forces in this episode
         assert _has(arena, style.RULE_COLOURS[name]) > 20, f"{name} arrows are drawn"
     for a, b in ((style.LEADER, style.RULE_COLOURS["leader"]),
