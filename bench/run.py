@@ -2,8 +2,8 @@
 
 Measures, after a warm-up, over several repeats (median and spread):
 env-steps/s and agent-steps/s of BoidsEnv with random actions and with the Reynolds policy in
-the loop, the bare-physics ceiling (World.step alone), and MPE2 ``simple_spread`` when the
-``bench`` extra is installed.
+the loop, the bare-physics ceiling (World.step alone), a map scene and a lidar against the
+default, and MPE2 ``simple_spread`` when the ``bench`` extra is installed.
 """
 
 from __future__ import annotations
@@ -44,11 +44,14 @@ def timed(fn: Callable[[], int], repeats: int) -> dict[str, float]:
     return {"median": statistics.median(rates), "min": min(rates), "max": max(rates)}
 
 
-def env_loop(robots: int, steps: int, policy: str, api: str = "dict") -> Callable[[], int]:
+def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
+             **fields: Any) -> Callable[[], int]:
     """Steps of the env with ``random`` or ``reynolds`` actions through the PettingZoo dict
-    API (``dict``) or the array API (``arrays``)."""
-    env = parallel_env(robots=robots, arena_half_size=arena_for(robots), path="external",
-                       max_cycles=10**9)
+    API (``dict``) or the array API (``arrays``); ``fields`` change the env config (a scene,
+    sensing)."""
+    if "scene" not in fields:
+        fields["arena_half_size"] = arena_for(robots)
+    env = parallel_env(robots=robots, path="external", max_cycles=10**9, **fields)
     rng = np.random.default_rng(0)
     reynolds = ReynoldsPolicy(startup_time=0.0)
     limit = env.config.world.max_speed
@@ -56,6 +59,7 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict") -> Callabl
     def run_dict() -> int:
         obs, _ = env.reset(seed=0)
         env.set_leader_command([0.3, 0.0])
+        reynolds.bind(env)
         reynolds.reset(0)
         for _ in range(steps):
             if policy == "random":
@@ -69,6 +73,7 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict") -> Callabl
     def run_arrays() -> int:
         obs = env.reset_arrays(seed=0)
         env.set_leader_command([0.3, 0.0])
+        reynolds.bind(env)
         reynolds.reset(0)
         for _ in range(steps):
             acts = (rng.uniform(-limit, limit, (len(obs), 2)) if policy == "random"
@@ -121,9 +126,25 @@ def _env_rows(sizes: list[int], repeats: int, record: Callable[..., None]) -> No
                timed(env_loop(n, steps, "reynolds", "arrays"), repeats))
 
 
+SCENE_ROWS = (("env reynolds lab", "reynolds", {"scene": "lab"}),
+              ("env random lidar16", "random", {"lidar_rays": 16}))
+"""The world beyond the study at 19 robots: the ``lab`` map scene (a 240 × 200 cell map) with
+the Reynolds policy avoiding its walls, and a 16-ray lidar, each against the default."""
+
+
+def _scene_rows(repeats: int, record: Callable[..., None]) -> None:
+    for kind, policy, fields in SCENE_ROWS:
+        record(kind, 19, 18, timed(env_loop(19, 400, policy, **fields), repeats))
+
+
 def _ratios(rows: list[dict[str, Any]]) -> dict[str, float]:
     by_kind = {(r["kind"], r["robots"]): r["env_steps_per_s"]["median"] for r in rows}
     ratios = {}
+    pairs = {"lab_19_over_arena_19": ("env reynolds lab", "env reynolds"),
+             "lidar16_19_over_none_19": ("env random lidar16", "env random")}
+    for name, (new, base) in pairs.items():
+        if (new, 19) in by_kind and (base, 19) in by_kind:
+            ratios[name] = by_kind[(new, 19)] / by_kind[(base, 19)]
     if ("env random", 19) in by_kind and ("mpe2 simple_spread", 18) in by_kind:
         ratios["env_random_19_over_mpe2_18"] = (by_kind[("env random", 19)]
                                                 / by_kind[("mpe2 simple_spread", 18)])
@@ -158,6 +179,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     if not args.training:
         _env_rows(sizes, repeats, record)
+        _scene_rows(repeats, record)
         for n in [6, 12, 18] if not args.quick else [18]:
             loop = mpe_loop(n, 200)
             if loop is None:
