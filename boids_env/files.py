@@ -12,6 +12,7 @@ import contextlib
 import json
 import os
 import shutil
+import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -73,3 +74,26 @@ def append_line(path: str | Path, line: str) -> None:
         fh.write(data)
         fh.flush()
         os.fsync(fh.fileno())
+
+
+def read_zip_entry(archive: zipfile.ZipFile, name: str, limit: int) -> bytes:
+    """The bytes of the entry ``name`` of ``archive``, read only if it holds at most ``limit``
+    bytes uncompressed: a zip bomb (a small entry that inflates to gigabytes) is refused with
+    a ``ValueError`` naming the entry before it is inflated, not after memory runs out.
+
+    Both the size the archive declares and the bytes actually inflated are checked (read in
+    chunks, stopping one byte past the limit). ``KeyError`` when there is no such entry."""
+    info = archive.getinfo(name)
+    if info.file_size > limit:
+        raise ValueError(f"its entry {name} holds {info.file_size:,} bytes uncompressed, more "
+                         f"than the {limit:,} allowed")
+    data = bytearray()
+    with archive.open(info) as fh:
+        while len(data) <= limit:
+            chunk = fh.read(min(1 << 20, limit + 1 - len(data)))
+            if not chunk:
+                break
+            data += chunk
+    if len(data) > limit:
+        raise ValueError(f"its entry {name} inflates beyond the {limit:,} bytes allowed")
+    return bytes(data)

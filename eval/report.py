@@ -36,6 +36,7 @@ from boids_env.eval.study import (
 from boids_env.eval.suites import BLOCK_SIZE
 from boids_env.files import atomic_path, write_text
 from boids_env.metrics import SAFETY_KEYS
+from boids_env.parquet import read_table
 from boids_env.recording import Recording
 
 __all__ = ["build_report", "load_results", "policy_comparison", "safety_table",
@@ -64,13 +65,35 @@ def load_results(out: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
         raise FileNotFoundError(f"no results.parquet in {out}; run boids eval --out {out} "
                                 f"first")
     try:
-        table = pd.read_parquet(path)
+        table = read_table(path).to_pandas()  # checksums verified
         suite = json.loads((out / "suite.json").read_text())
     except (OSError, ValueError) as exc:
         raise ValueError(f"cannot read the results in {out}: {exc}") from exc
     if table.empty:
         raise ValueError(f"{path} holds no finished episodes")
+    _check_suite(out / "suite.json", suite)
     return table, suite
+
+
+def _check_suite(path: Path, suite: Any) -> None:
+    """``ValueError`` naming the key when ``suite.json`` (a file anyone can edit) is not what
+    the runner writes; the follower count that sizes figures is bounded as in a suite file."""
+    from boids_env.config import check_integer
+
+    if not isinstance(suite, dict):
+        raise ValueError(f"{path} must hold a JSON table, got {type(suite).__name__}")
+    shapes = (("name", str), ("seeds", list), ("policies", list), ("cases", list),
+              ("per_follower", list))
+    for key, kind in shapes:
+        if not isinstance(suite.get(key), kind):
+            raise ValueError(f"{path}: {key} must be a {kind.__name__}, got "
+                             f"{suite.get(key)!r:.80}")
+    if not all(isinstance(p, dict) and "label" in p for p in suite["policies"]):
+        raise ValueError(f"{path}: policies must be tables with a label")
+    try:
+        check_integer("followers_analysed", suite.get("followers_analysed", 6), 1, 10_000)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
 
 
 def num(value: float, digits: int = 3) -> str:

@@ -6,7 +6,9 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
+import pyarrow.parquet
 import pytest
 
 from boids_env.eval.folder import MANIFEST
@@ -141,11 +143,11 @@ def test_results_survive_a_full_disk(tmp_path, monkeypatch):
     _run(tmp_path, {**TINY, "seeds": 1})
     before = pd.read_parquet(tmp_path / "results.parquet")
 
-    def disk_full(self, path, *args, **kwargs):
+    def disk_full(table, path, *args, **kwargs):
         Path(path).write_bytes(b"PAR1 partial")
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(pd.DataFrame, "to_parquet", disk_full)
+    monkeypatch.setattr(pyarrow.parquet, "write_table", disk_full)
     with pytest.raises(OSError, match="No space"):
         _run(tmp_path)
     monkeypatch.undo()
@@ -220,3 +222,23 @@ def test_a_folder_of_another_command_is_refused_even_with_overwrite(tmp_path):
     with pytest.raises(ValueError, match=r"belongs to boids train .*even with --overwrite"):
         _run(tmp_path, overwrite=True)
     assert (tmp_path / "model.zip").read_bytes() == b"weights"
+
+
+def test_a_damaged_results_table_is_refused_not_reported(tmp_path):
+    from boids_env.eval.report import load_results
+
+    _run(tmp_path, {**TINY, "seeds": 1})
+    path = tmp_path / "results.parquet"
+    raw, (table, _) = path.read_bytes(), load_results(tmp_path)
+    changed = []
+    for at in np.linspace(4, len(raw) - 9, 60).astype(int):
+        flipped = bytearray(raw)
+        flipped[at] ^= 0x5A
+        path.write_bytes(bytes(flipped))
+        try:
+            back, _ = load_results(tmp_path)
+        except ValueError:
+            continue
+        if not back.equals(table):
+            changed.append(int(at))
+    assert not changed, f"flips at bytes {changed} of {len(raw)} changed the results"

@@ -94,3 +94,23 @@ def test_a_figure_linked_out_of_the_folder_is_not_inlined(tmp_path, secret, monk
 ])
 def test_escape(text, shown):
     assert escape(text) == shown
+
+
+@pytest.mark.parametrize("key, value, match", [
+    ("followers_analysed", 2**40, r"followers_analysed must be in \[1, 10000\]"),
+    ("followers_analysed", "6", "followers_analysed must be"),
+    ("policies", [{"spec": "x"}], "policies must be tables with a label"),
+    ("cases", None, "cases must be a list"),
+])
+def test_an_edited_suite_json_is_refused_by_key_before_it_sizes_anything(tmp_path, key, value,
+                                                                         match):
+    out = tmp_path / "out"
+    run_suite([PolicySpec("reynolds")], suite_from_dict(
+        {"name": "ok", "seeds": 1, "defaults": {"robots": 3, "max_cycles": 10},
+         "per_follower": ["g"], "case": [{"name": "a", "group": "g"}]}), out,
+        backend="inline", progress=False)
+    suite = json.loads((out / "suite.json").read_text())
+    suite[key] = value
+    (out / "suite.json").write_text(json.dumps(suite))
+    with pytest.raises(ValueError, match=match):
+        build_report(out)
