@@ -168,8 +168,8 @@ def replace_folder(box: Path, new: Path, target: Path) -> None:
 def replace_entries(box: Path, new: Path, names: Sequence[str],
                     remove: Sequence[str] = ()) -> None:
     """Moves the entries ``names`` of the folder ``new`` (inside ``box``) into ``box``'s
-    target folder in that order, each replacing its namesake atomically (a folder by an
-    exchange where the OS can), after moving its entries ``remove`` out of the way (into
+    target folder in that order, each file replacing its namesake atomically (a folder once
+    the old one is set aside), after moving its entries ``remove`` out of the way (into
     ``box``). Other entries of the target are left alone. A kill half-way is completed by the
     next :func:`clear_stale`."""
     _write_journal(box, {"from": new.name, "names": list(names),
@@ -211,8 +211,8 @@ def _finish(box: Path) -> None:
         src, dst = new / name, target / name
         if not (src.exists() or src.is_symlink()):
             continue  # moved already
-        if src.is_dir() and dst.is_dir() and not dst.is_symlink() and exchange(src, dst):
-            continue
+        # a folder cannot replace its namesake in one rename: the old one goes first (a kill
+        # in between is completed from the journal; an exchange could not be repeated)
         if src.is_dir() or (dst.is_dir() and not dst.is_symlink()):
             _set_aside(dst, old)
         os.replace(src, dst)

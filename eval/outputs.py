@@ -145,8 +145,10 @@ class RunFolder:
         out = self.out
         self.replaced = sorted(ours - {MANIFEST})
         self.kept = foreign
-        if not foreign and out.resolve() != Path.cwd().resolve():
-            # nothing of the user's in it: swap the whole folder (never a mixed folder)
+        movable = out.resolve() != Path.cwd().resolve() and not out.is_mount()
+        if not foreign and movable:
+            # nothing of the user's in it: swap the whole folder (never a mixed folder); the
+            # working directory or a mount point cannot be moved, so those go entry by entry
             temporaries.replace_folder(box, tmp, out)
             return
         # the user's own files stay: replace our entries one by one, the manifest last

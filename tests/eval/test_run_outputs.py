@@ -137,14 +137,21 @@ def test_out_naming_a_file_is_refused(tmp_path):
         _run(tmp_path / "f")
 
 
-OLD = {"metrics.json": b"old", "config.json": b"old", "episode.gif": b"old"}
-NEW = {"metrics.json": b"new", "config.json": b"new", "trajectory.parquet": b"new"}
+OLD = {"metrics.json": b"old", "config.json": b"old", "episode.gif": b"old",
+       "episode_mcap/episode_mcap.mcap": b"old"}
+NEW = {"metrics.json": b"new", "config.json": b"new", "trajectory.parquet": b"new",
+       "episode_mcap/episode_mcap.mcap": b"new"}
+
+
+def _put(folder, files):
+    for name, data in files.items():
+        (folder / name).parent.mkdir(exist_ok=True)
+        (folder / name).write_bytes(data)
 
 
 def _write(out, files, **kwargs):
     with RunFolder(out, **kwargs) as tmp:
-        for name, data in files.items():
-            (tmp / name).write_bytes(data)
+        _put(tmp, files)
 
 
 def _killed_in_commit(out, files, k, can_exchange=True):
@@ -157,8 +164,7 @@ def _killed_in_commit(out, files, k, can_exchange=True):
     if pid == 0:  # pragma: no cover - the child
         try:
             with RunFolder(out, overwrite=True) as tmp:
-                for name, data in files.items():
-                    (tmp / name).write_bytes(data)
+                _put(tmp, files)
                 calls = [0]
 
                 def dying(real):
@@ -179,7 +185,8 @@ def _killed_in_commit(out, files, k, can_exchange=True):
 
 
 def _contents(out):
-    return {p.name: p.read_bytes() for p in out.iterdir() if p.name != MANIFEST}
+    return {str(p.relative_to(out)): p.read_bytes() for p in out.rglob("*")
+            if p.is_file() and p.name != MANIFEST}
 
 
 @pytest.mark.parametrize("mine, can_exchange", [({}, True), ({}, False),
@@ -205,7 +212,7 @@ def test_a_run_killed_at_any_point_of_its_commit_leaves_one_whole_run(tmp_path, 
         RunFolder(out, overwrite=True)  # the next run into the folder
         assert _contents(out) in (old, new), (k, _contents(out))
         listed = json.loads((out / MANIFEST).read_text())["files"]
-        assert set(listed) == set(_contents(out)) - set(mine), (k, listed)
+        assert set(listed) == {n.split("/")[0] for n in _contents(out)} - set(mine), k
         assert _names(out.parent) == ["run"], (k, _names(out.parent))
         if not killed:
             assert _contents(out) == new
