@@ -16,8 +16,8 @@ from boids_env.train.cli import main
 from boids_env.train.config import TrainConfig
 from boids_env.train.run import train
 
-TINY = {"total_timesteps": 1200, "group_sizes": (4, 5), "copies": 2, "n_steps": 80,
-        "batch_size": 140, "n_epochs": 2, "eval_every": 0, "checkpoint_every": 600,
+TINY = {"total_timesteps": 600, "group_sizes": (4, 5), "copies": 2, "n_steps": 40,
+        "batch_size": 140, "n_epochs": 1, "eval_every": 0, "checkpoint_every": 300,
         "env_fields": {"max_cycles": 30, "neighbours": 4}}
 
 
@@ -69,7 +69,7 @@ def test_overwrite_removes_only_names_a_training_writes(tmp_path):
                                             "files": ["my_thesis_data.csv", "..", "model.zip"]}))
     with pytest.raises(ValueError, match="--overwrite"):
         train(TrainConfig(**TINY), out)
-    train(TrainConfig(**{**TINY, "total_timesteps": 500, "checkpoint_every": 0}), out,
+    train(TrainConfig(**{**TINY, "total_timesteps": 300, "checkpoint_every": 0}), out,
           overwrite=True)
     assert (out / "my_thesis_data.csv").read_text() == "precious"
 
@@ -79,20 +79,20 @@ def test_a_resume_goes_on_in_its_folder_and_never_tears_the_model(tmp_path, monk
     cfg = TrainConfig(**TINY)
     train(cfg, out)
     first = (out / "model.zip").read_bytes()
-    checkpoint = out / "checkpoints" / "model_1190_steps.zip"
+    checkpoint = out / "checkpoints" / "model_588_steps.zip"
     done = SB3Policy.load(checkpoint).model.num_timesteps
-    assert done == 1190
+    assert done == 588
 
     # a resume that would train nothing is refused before anything is written
-    for total in (1190, 1000):
-        with pytest.raises(ValueError, match=r"must exceed the 1,190 follower-steps checkpoint "
-                                             r".*model_1190_steps.zip has already trained"):
+    for total in (588, 500):
+        with pytest.raises(ValueError, match=r"must exceed the 588 follower-steps checkpoint "
+                                             r".*model_588_steps.zip has already trained"):
             train(cfg.replace(total_timesteps=total), tmp_path / "new", resume=checkpoint)
     assert not (tmp_path / "new").exists()
     with pytest.raises(ValueError, match=r"inside --out .* --overwrite would empty first"):
-        train(cfg.replace(total_timesteps=2400), out, resume=checkpoint, overwrite=True)
+        train(cfg.replace(total_timesteps=1200), out, resume=checkpoint, overwrite=True)
     with pytest.raises(ValueError, match="holds a training"):  # another training's folder
-        train(cfg.replace(total_timesteps=2400, seed=5), out, resume=checkpoint)
+        train(cfg.replace(total_timesteps=1200, seed=5), out, resume=checkpoint)
     assert (out / "model.zip").read_bytes() == first
 
     # the same training resumed in its folder; the final save fails on a full disk
@@ -101,10 +101,10 @@ def test_a_resume_goes_on_in_its_folder_and_never_tears_the_model(tmp_path, monk
 
     monkeypatch.setattr(train_run, "write_meta", full_disk)
     with pytest.raises(OSError, match="No space left"):
-        train(cfg.replace(total_timesteps=2400), out, resume=checkpoint)
+        train(cfg.replace(total_timesteps=1200), out, resume=checkpoint)
     monkeypatch.undo()
     assert (out / "model.zip").read_bytes() == first, "the earlier model, whole"
-    assert (out / "checkpoints" / "model_2380_steps.zip").is_file(), "the resumed run's"
+    assert (out / "checkpoints" / "model_1176_steps.zip").is_file(), "the resumed run's"
     assert sorted(p.name for p in (out / "tb").iterdir()) == ["run_1"], "logs go on"
     assert not [p for p in out.rglob(".*") if p.name != ".boids-temporary"], \
         "no temporary left"
