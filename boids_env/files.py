@@ -1,6 +1,10 @@
 """Atomic writes: every file (or folder) is written under a temporary name beside its target and
 renamed over it only when complete, so a crash, a full disk or Ctrl-C never leaves a torn or
-truncated file where a good one was (POSIX ``rename`` is atomic within a file system)."""
+truncated file where a good one was (POSIX ``rename`` is atomic within a file system).
+
+The temporary lives in a folder of ours beside the target (:mod:`boids_env.temporaries`: a
+marker inside proves it ours), so what a killed write leaves is found and removed by a later
+command, and a user's file of a similar name never is."""
 
 from __future__ import annotations
 
@@ -8,40 +12,34 @@ import contextlib
 import json
 import os
 import shutil
-import uuid
+import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-
-def _temporary(path: Path) -> Path:
-    return path.with_name(f".{path.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}")
+from boids_env import temporaries
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yields a temporary path beside ``path`` to write a file or a folder to; when the block
-    ends without an exception it replaces ``path`` (an existing file, or folder, of that name
-    included), otherwise it is removed and ``path`` is left as it was."""
+    """Yields a temporary path beside ``path`` (of the same name, in a temporary folder of
+    ours) to write a file or a folder to; when the block ends without an exception it replaces
+    ``path`` (an existing file, or folder, of that name included), otherwise it is removed and
+    ``path`` is left as it was."""
     target = Path(path)
-    tmp = _temporary(target)
+    box = temporaries.create(target, "tmp")
+    tmp = box / target.name
     try:
         yield tmp
         if tmp.is_file():
             with open(tmp, "rb") as fh:
                 os.fsync(fh.fileno())
         if target.is_dir() and not target.is_symlink():
-            old = _temporary(target)
-            os.replace(target, old)
-            os.replace(tmp, target)
-            shutil.rmtree(old, ignore_errors=True)
+            temporaries.replace_folder(box, tmp, target)
         else:
             os.replace(tmp, target)
     finally:
-        if tmp.is_dir() and not tmp.is_symlink():
-            shutil.rmtree(tmp, ignore_errors=True)
-        elif tmp.exists() or tmp.is_symlink():
-            tmp.unlink()
+        shutil.rmtree(box, ignore_errors=True)
 
 
 def write_bytes(path: str | Path, data: bytes) -> Path:
@@ -76,3 +74,26 @@ def append_line(path: str | Path, line: str) -> None:
         fh.write(data)
         fh.flush()
         os.fsync(fh.fileno())
+
+
+def read_zip_entry(archive: zipfile.ZipFile, name: str, limit: int) -> bytes:
+    """The bytes of the entry ``name`` of ``archive``, read only if it holds at most ``limit``
+    bytes uncompressed: a zip bomb (a small entry that inflates to gigabytes) is refused with
+    a ``ValueError`` naming the entry before it is inflated, not after memory runs out.
+
+    Both the size the archive declares and the bytes actually inflated are checked (read in
+    chunks, stopping one byte past the limit). ``KeyError`` when there is no such entry."""
+    info = archive.getinfo(name)
+    if info.file_size > limit:
+        raise ValueError(f"its entry {name} holds {info.file_size:,} bytes uncompressed, more "
+                         f"than the {limit:,} allowed")
+    data = bytearray()
+    with archive.open(info) as fh:
+        while len(data) <= limit:
+            chunk = fh.read(min(1 << 20, limit + 1 - len(data)))
+            if not chunk:
+                break
+            data += chunk
+    if len(data) > limit:
+        raise ValueError(f"its entry {name} inflates beyond the {limit:,} bytes allowed")
+    return bytes(data)

@@ -7,6 +7,10 @@ the live env's numbers.
 
 Parquet layout: one row per (step, robot) with columns ``step, time, robot, x, y, vx, vy,
 cmd_vx, cmd_vy``; the resolved config (JSON) is in the schema metadata under ``boids_env``.
+
+Files carry Parquet's page checksums and a digest of their schema and metadata, verified on
+reading (:mod:`boids_env.parquet`): a file damaged on disk or in transfer is refused by name,
+never read back as other numbers.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ import numpy.typing as npt
 
 from boids_env import metrics
 from boids_env.config import EnvConfig
-from boids_env.files import atomic_path
+from boids_env.parquet import read_table, write_table
 
 if TYPE_CHECKING:
     from boids_env.environment import BoidsEnv
@@ -62,7 +66,6 @@ class Recording:
         temporary file beside ``path`` is renamed over it when complete, so an existing file
         survives a failed write (a full disk, Ctrl-C)."""
         import pyarrow as pa
-        import pyarrow.parquet as pq
 
         if Path(path).is_dir():
             raise IsADirectoryError(f"cannot write a recording to {path}: it is a folder")
@@ -83,9 +86,7 @@ class Recording:
         table = pa.table(cols)
         meta = {"config": self.config.to_dict(), "extra": self.extra,
                 "leader_path": None if self.leader_path is None else self.leader_path.tolist()}
-        table = table.replace_schema_metadata({"boids_env": json.dumps(meta)})
-        with atomic_path(path) as tmp:
-            pq.write_table(table, str(tmp))
+        write_table(table.replace_schema_metadata({"boids_env": json.dumps(meta)}), path)
 
     @classmethod
     def from_parquet(cls, path: str | Path) -> Recording:
@@ -93,12 +94,12 @@ class Recording:
 
         Raises ``FileNotFoundError`` for a missing file and a ``ValueError`` naming the file
         and the problem for anything that is not exactly one recording: a folder (a dataset
-        of several files), an empty or unreadable file, missing columns, bad metadata, a
-        config that disagrees with the data, duplicated, missing or negative step and robot
-        indices, non-finite values.
+        of several files), an empty or unreadable file, a damaged one (a page or the metadata
+        failing its checksum), missing columns, bad metadata, a config that disagrees with the
+        data, duplicated, missing, negative or out-of-range step and robot indices, non-finite
+        values. Indices are bounded by the number of rows before anything is allocated from
+        them.
         """
-        import pyarrow.parquet as pq
-
         path = Path(path)
         if path.is_dir():
             raise ValueError(f"{path} is a folder, not a recording file (one recording is one "
@@ -106,9 +107,9 @@ class Recording:
         if not path.exists():
             raise FileNotFoundError(f"recording not found: {path}")
         try:
-            table = pq.read_table(str(path))
-        except Exception as exc:
-            raise ValueError(f"cannot read recording {path}: not a Parquet file ({exc})") from exc
+            table = read_table(path)
+        except ValueError as exc:
+            raise ValueError(f"cannot read recording {path}: {exc}") from exc
         missing = [c for c in COLUMNS if c not in table.column_names]
         raw = (table.schema.metadata or {}).get(b"boids_env")
         if missing or raw is None:
@@ -128,10 +129,8 @@ class Recording:
         def pair(a: str, b: str) -> FloatArray:
             return np.stack([data[a][order], data[b][order]], axis=1).reshape(steps, n, 2)
 
-        names = [c[len("force_"):-2] for c in table.column_names
-                 if c.startswith("force_") and c.endswith("_x")]
-        data.update({c: table.column(c).to_numpy().astype(np.float64)
-                     for c in table.column_names if c.startswith("force_")})
+        names = _force_names(path, table.column_names)
+        data.update(_force_columns(path, table, names))
         forces = {name: pair(f"force_{name}_x", f"force_{name}_y")[:, 1:].copy()
                   for name in names} or None
         return cls(config, time[:, 0].copy(), pair("x", "y"), pair("vx", "vy"),
@@ -189,14 +188,43 @@ def _read_columns(path: Path, table: Any) -> dict[str, npt.NDArray[Any]]:
     return data
 
 
+def _force_names(path: Path, columns: list[str]) -> list[str]:
+    """The rule names of the ``force_<name>_x`` / ``force_<name>_y`` column pairs."""
+    forces = [c for c in columns if c.startswith("force_")]
+    names = [c[len("force_"):-2] for c in forces if c.endswith("_x")]
+    paired = {f"force_{n}_{axis}" for n in names for axis in "xy"}
+    if set(forces) != paired:
+        odd = sorted(set(forces) ^ paired)
+        raise ValueError(f"{path}: force columns must come in _x/_y pairs; {odd} lack their "
+                         f"other half")
+    return names
+
+
+def _force_columns(path: Path, table: Any, names: list[str]) -> dict[str, npt.NDArray[Any]]:
+    """The force columns as float arrays (NaN in the leader's rows)."""
+    out = {}
+    for name in (f"force_{n}_{axis}" for n in names for axis in "xy"):
+        column = table.column(name).to_numpy()
+        if column.dtype.kind not in "fiu":
+            raise ValueError(f"{path}: column {name!r} must hold numbers, got {column.dtype}")
+        out[name] = column.astype(np.float64)
+    return out
+
+
 def _sample_grid(path: Path, data: dict[str, npt.NDArray[Any]]
                  ) -> tuple[int, int, npt.NDArray[np.intp]]:
     """(steps, robots, row order) of a complete (step, robot) grid: every step 0..T-1 holds
     every robot 0..N-1 exactly once; ``ValueError`` naming what is wrong otherwise."""
     step, robot = data["step"].astype(np.int64), data["robot"].astype(np.int64)
+    rows = len(step)
     for name, values in (("step", step), ("robot", robot)):
         if values.min() < 0:
             raise ValueError(f"{path}: {name} indices must be >= 0, got {int(values.min())}")
+        # a complete grid of R rows has indices below R: a larger one is refused before it
+        # sizes anything (a robot index of 2**40 asked for 8 TiB)
+        if values.max() >= rows:
+            raise ValueError(f"{path}: {name} index {int(values.max())} is beyond the file's "
+                             f"{rows} rows (each step holds every robot once)")
     n, steps = int(robot.max()) + 1, int(step.max()) + 1
     order = np.lexsort((robot, step))
     pairs = np.stack([step[order], robot[order]], axis=1)

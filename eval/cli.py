@@ -283,7 +283,6 @@ def _cmd_eval(args: argparse.Namespace) -> int:
             purpose="boids eval")
     from pathlib import Path
 
-    from boids_env.eval.folder import record_files
     from boids_env.eval.report import build_report
     from boids_env.eval.runner import PolicySpec, failures, run_suite
     from boids_env.eval.suites import load_suite
@@ -304,9 +303,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         print(f"boids eval: all {len(failed)} episodes failed; see {out / 'errors.jsonl'}",
               file=sys.stderr)
         return 1
-    before = {p.name for p in out.iterdir()}
-    report = build_report(out)
-    record_files(out, sorted({p.name for p in out.iterdir()} - before))
+    report = build_report(out)  # it records its files in the folder's manifest
     print(f"{len(table)} episode rows; wrote results.parquet, results.csv and {report}")
     if failed:
         print(f"boids eval: {len(failed)} episodes failed (listed in {out / 'errors.jsonl'} "

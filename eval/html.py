@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import html
 import re
+from collections.abc import Collection
 from pathlib import Path
 
 from boids_env.files import write_text
@@ -46,13 +47,18 @@ img.traj { display: inline-block; width: 32%; min-width: 260px; margin: .3em .4%
 """
 
 
-def write_html(markdown_text: str, path: Path, title: str, base: Path) -> Path:
-    """Renders the report's Markdown to ``path``: figures referenced relative to ``base``
-    are inlined (PNG data URIs), wide tables scroll, verdict cells are coloured."""
+def write_html(markdown_text: str, path: Path, title: str, base: Path,
+               figures: Collection[str] = ()) -> Path:
+    """Renders the report's Markdown to ``path``: the figures the report drew (``figures``:
+    their paths relative to ``base``, as the Markdown names them) are inlined as data URIs,
+    wide tables scroll, verdict cells are coloured. No other file is ever read: an image the
+    Markdown names that is not one of ``figures``, or whose path leads out of ``base`` (a
+    link included), is left as it is."""
     import markdown
 
     body = markdown.markdown(markdown_text, extensions=["tables", "sane_lists"])
-    body = re.sub(r"<img ([^>]*?)src=\"([^\"]+)\"", lambda m: _inline(m, base), body)
+    body = re.sub(r"<img ([^>]*?)src=\"([^\"]+)\"",
+                  lambda m: _inline(m, base, frozenset(figures)), body)
     body = re.sub(r"<td([^>]*)>([^<]*)</td>", _verdict_cell, body)
     body = body.replace("<table>", "<div class=\"scroll\"><table>").replace(
         "</table>", "</table></div>")
@@ -63,15 +69,25 @@ def write_html(markdown_text: str, path: Path, title: str, base: Path) -> Path:
     return write_text(path, page)
 
 
-def _inline(match: re.Match[str], base: Path) -> str:
+def _inline(match: re.Match[str], base: Path, figures: frozenset[str]) -> str:
     attrs, src = match.group(1), match.group(2)
     file = base / src
-    if src.startswith(("data:", "http:", "https:")) or not file.is_file():
+    if src not in figures or not _inside(file, base):
         return match.group(0)
     data = base64.b64encode(file.read_bytes()).decode("ascii")
     kind = "svg+xml" if file.suffix == ".svg" else file.suffix.lstrip(".")
     extra = "class=\"traj\" " if file.name.startswith("traj_") else ""
     return f"<img {extra}{attrs}src=\"data:image/{kind};base64,{data}\""
+
+
+def _inside(file: Path, base: Path) -> bool:
+    """Whether ``file`` is a regular file inside ``base``, no link on the way."""
+    try:
+        real = file.resolve(strict=True)
+        return (real.is_relative_to(base.resolve(strict=True)) and real.is_file()
+                and real == base.resolve() / file.relative_to(base))
+    except (OSError, ValueError):
+        return False
 
 
 def _verdict_cell(match: re.Match[str]) -> str:

@@ -9,18 +9,23 @@
 - The run writes into a temporary folder beside the target and moves it into place only
   when everything is written: a run that is killed or fails leaves the earlier run's folder
   as it was, never a half-written one (POSIX ``rename`` is atomic within a file system).
+- The move itself is crash-safe (:mod:`boids_env.temporaries`): a folder holding only our
+  run is swapped for the new one in one system call where the OS can, so ``--out`` is never
+  missing; with the user's files beside ours, each of our entries is replaced atomically,
+  the manifest last, from a journal that the next run into the same ``--out`` completes if
+  the process was killed half-way. What a killed run leaves beside ``--out`` (its temporary
+  folder, with a marker proving it ours) is removed by the next run into that ``--out``.
 """
 
 from __future__ import annotations
 
-import os
 import shutil
 import time
-import uuid
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
+from boids_env import temporaries
 from boids_env.files import write_json
 
 MANIFEST = "manifest.json"
@@ -43,6 +48,10 @@ def _listed(folder: Path) -> set[str]:
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f"{path} is not a boids run manifest ({exc}); delete it or choose "
                          f"another --out") from exc
+    if "kind" in data:  # boids eval and boids train own their folders too
+        raise FileExistsError(f"--out {folder} belongs to {data['kind']} (its {MANIFEST}); "
+                              f"boids run never writes into it, even with --overwrite: choose "
+                              f"another --out")
     # a manifest never names anything outside its folder
     return {str(f) for f in files if isinstance(f, str) and "/" not in f and f not in ("",
                                                                                      ".", "..")}
@@ -70,11 +79,18 @@ class RunFolder:
         self.overwrite = overwrite
         self.command = command
         self.tmp: Path | None = None
+        self._box: Path | None = None
         self.kept: list[str] = []
         """The user's own entries found in the folder and left in place."""
         self.replaced: list[str] = []
         """An earlier run's entries that were removed."""
+        if self.out.parent.is_dir():  # what a killed run into this --out left beside it
+            temporaries.clear_stale(self.out.parent, self.out.name, allowed=self._ours_to_move)
         self._check()
+
+    def _ours_to_move(self, name: str) -> bool:
+        """Names a commit of ours into ``out`` moves: the folder, and a run's outputs in it."""
+        return name == self.out.name or name in RUN_OUTPUTS
 
     def _check(self) -> tuple[set[str], list[str]]:
         """(entries an earlier run of ours listed, the user's own entries); raises when the
@@ -103,21 +119,22 @@ class RunFolder:
 
     def __enter__(self) -> Path:
         self.out.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = self.out.parent / f".{self.out.name}.run-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+        self._box = temporaries.create(self.out, "run")
+        self.tmp = self._box / "new"
         self.tmp.mkdir()
         return self.tmp
 
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
-        assert self.tmp is not None, "RunFolder used outside a with block"
+        assert self._box is not None and self.tmp is not None, \
+            "RunFolder used outside a with block"
         try:
             if kind is None:
-                self._commit(self.tmp)
+                self._commit(self._box, self.tmp)
         finally:
-            if self.tmp.exists():
-                shutil.rmtree(self.tmp, ignore_errors=True)
+            shutil.rmtree(self._box, ignore_errors=True)
 
-    def _commit(self, tmp: Path) -> None:
+    def _commit(self, box: Path, tmp: Path) -> None:
         written = sorted(p.name for p in tmp.iterdir())
         unknown = set(written) - RUN_OUTPUTS
         assert not unknown, f"RUN_OUTPUTS lacks {unknown}: --overwrite could not remove them"
@@ -126,32 +143,14 @@ class RunFolder:
         write_json(tmp / MANIFEST, manifest)
         ours, foreign = self._check()  # again: the folder may have changed during the run
         out = self.out
-        if not out.exists():
-            os.rename(tmp, out)
-            return
-        if not ours and not foreign:  # an empty folder
-            out.rmdir()
-            os.rename(tmp, out)
-            return
         self.replaced = sorted(ours - {MANIFEST})
         self.kept = foreign
-        if not foreign and out.resolve() != Path.cwd().resolve():
-            # only ours in it: swap the whole folder (never a moment with a mixed folder)
-            old = out.parent / f".{out.name}.old-{uuid.uuid4().hex[:8]}"
-            os.rename(out, old)
-            os.rename(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
+        movable = out.resolve() != Path.cwd().resolve() and not out.is_mount()
+        if not foreign and movable:
+            # nothing of the user's in it: swap the whole folder (never a mixed folder); the
+            # working directory or a mount point cannot be moved, so those go entry by entry
+            temporaries.replace_folder(box, tmp, out)
             return
         # the user's own files stay: replace our entries one by one, the manifest last
-        for name in sorted(ours):
-            _remove(out / name)
-        for name in written:
-            os.replace(tmp / name, out / name)
-        os.replace(tmp / MANIFEST, out / MANIFEST)
-
-
-def _remove(path: Path) -> None:
-    if path.is_dir() and not path.is_symlink():
-        shutil.rmtree(path)
-    elif path.exists() or path.is_symlink():
-        path.unlink()
+        temporaries.replace_entries(box, tmp, [*written, MANIFEST],
+                                    remove=sorted(ours - {MANIFEST}))

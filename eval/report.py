@@ -20,7 +20,9 @@ import pandas as pd
 from boids_env.eval import figures
 from boids_env.eval.compare import policy_comparison, with_contacts
 from boids_env.eval.compare import verdicts as policy_verdicts
+from boids_env.eval.folder import REPORT_OUTPUTS, record_files
 from boids_env.eval.html import write_html
+from boids_env.eval.markup import escape
 from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, pair_difference
 from boids_env.eval.study import (
     GROUP_OF_RQ,
@@ -34,6 +36,7 @@ from boids_env.eval.study import (
 from boids_env.eval.suites import BLOCK_SIZE
 from boids_env.files import atomic_path, write_text
 from boids_env.metrics import SAFETY_KEYS
+from boids_env.parquet import read_table
 from boids_env.recording import Recording
 
 __all__ = ["build_report", "load_results", "policy_comparison", "safety_table",
@@ -52,6 +55,7 @@ assert set(SAFETY_KEYS) <= set(SAFETY_METRICS)
 OWN_CSVS = ("stats_anova.csv", "stats_tukey.csv", "stats_tukey_study.csv",
             "policy_comparison.csv", "policy_verdicts.csv", "safety.csv", "blocks.csv")
 """CSVs a build may write (besides ``verdicts_<policy>.csv``); stale ones are removed."""
+assert set(OWN_CSVS) <= set(REPORT_OUTPUTS)
 
 
 def load_results(out: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
@@ -62,13 +66,35 @@ def load_results(out: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
         raise FileNotFoundError(f"no results.parquet in {out}; run boids eval --out {out} "
                                 f"first")
     try:
-        table = pd.read_parquet(path)
+        table = read_table(path).to_pandas()  # checksums verified
         suite = json.loads((out / "suite.json").read_text())
     except (OSError, ValueError) as exc:
         raise ValueError(f"cannot read the results in {out}: {exc}") from exc
     if table.empty:
         raise ValueError(f"{path} holds no finished episodes")
+    _check_suite(out / "suite.json", suite)
     return table, suite
+
+
+def _check_suite(path: Path, suite: Any) -> None:
+    """``ValueError`` naming the key when ``suite.json`` (a file anyone can edit) is not what
+    the runner writes; the follower count that sizes figures is bounded as in a suite file."""
+    from boids_env.config import check_integer
+
+    if not isinstance(suite, dict):
+        raise ValueError(f"{path} must hold a JSON table, got {type(suite).__name__}")
+    shapes = (("name", str), ("seeds", list), ("policies", list), ("cases", list),
+              ("per_follower", list))
+    for key, kind in shapes:
+        if not isinstance(suite.get(key), kind):
+            raise ValueError(f"{path}: {key} must be a {kind.__name__}, got "
+                             f"{suite.get(key)!r:.80}")
+    if not all(isinstance(p, dict) and "label" in p for p in suite["policies"]):
+        raise ValueError(f"{path}: policies must be tables with a label")
+    try:
+        check_integer("followers_analysed", suite.get("followers_analysed", 6), 1, 10_000)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
 
 
 def num(value: float, digits: int = 3) -> str:
@@ -193,7 +219,7 @@ def failed_episodes(out: Path) -> list[str]:
         "policy": r.get("policy"), "cases": ", ".join(map(str, r.get("cases") or
                                                           [r.get("case")])),
         "seed": r.get("seed"), "reason": r.get("reason"),
-        "error": str(r.get("error") or "-").splitlines()[0][:200].replace("|", "/")}
+        "error": (str(r.get("error") or "-").splitlines() or ["-"])[0][:200]}
         for r in rows])
     return ["## Failed episodes", "",
             f"{len(rows)} episode(s) failed and are missing from every table and figure "
@@ -202,6 +228,8 @@ def failed_episodes(out: Path) -> list[str]:
 
 
 def _md_table(df: pd.DataFrame) -> str:
+    """The table in Markdown: floats formatted, every other cell escaped (names come from
+    the user's files)."""
     if not len(df):
         return "(none)"
     shown = df.copy()
@@ -210,6 +238,8 @@ def _md_table(df: pd.DataFrame) -> str:
             shown[col] = [("—" if not np.isfinite(v) else
                            (f"{v:.3g}" if col.startswith("p") else num(v, 4)))
                           for v in shown[col]]
+        else:
+            shown[col] = [escape(v) for v in shown[col]]
     return shown.to_markdown(index=False, disable_numparse=True)
 
 
@@ -236,9 +266,10 @@ def build_report(out: str | Path) -> Path:
                                      "safety.csv": safety_table(table)}
     title = (f"Evaluation report: suite {suite['name']} — "
              f"{' vs '.join(policies)}")
-    md = [f"# {title}", "",
-          f"Policies: {', '.join(p['label'] for p in suite['policies'])} (the first is the "
-          f"baseline). Seeds: {', '.join(map(str, suite['seeds']))}. Episodes in the table: "
+    md = [f"# {escape(title)}", "",
+          f"Policies: {escape(', '.join(str(p['label']) for p in suite['policies']))} (the "
+          f"first is the baseline). Seeds: {escape(', '.join(map(str, suite['seeds'])))}. "
+          f"Episodes in the table: "
           f"{len(table)} (cases that are the same configuration share their runs). "
           f"Mean ± population std over seeds unless stated; figures show 95 % "
           f"percentile-bootstrap confidence intervals.{_realism_note(suite)}", ""]
@@ -267,12 +298,22 @@ def build_report(out: str | Path) -> Path:
         md += ["## Figures", "", f"Each figure is in `figures/` as PNG and SVG. "
                f"{figures.CI_NOTE}.", ""]
         md += _figures(table, suite, per_follower, followers, fig_dir, is_paper, policies)
+        md += _trajectory_figures(table, fig_dir, out)
+        drawn = [f"figures/{p.name}" for p in fig_dir.iterdir()]
     _write_csvs(out, csvs)
     md = md[:2] + summary + [""] + md[2:] if len(summary) > 2 else md
     text = "\n".join(md) + "\n"
     write_text(out / "report.md", text)
-    write_html(text, out / "report.html", title, out)
+    write_html(text, out / "report.html", title, out, drawn)
+    record_files(out, ["report.md", "report.html", "figures", *csvs])
     return out / "report.md"
+
+
+def _own_file(folder: Path, name: str) -> bool:
+    """Whether ``name`` (a trajectory named in ``results.parquet``) is a file name in
+    ``folder`` that stays there: a plain name, not a link (it need not exist)."""
+    return (name not in ("", ".", "..") and "/" not in name and "\\" not in name
+            and not (folder / name).is_symlink())
 
 
 def _realism_note(suite: dict[str, Any]) -> str:
@@ -281,7 +322,8 @@ def _realism_note(suite: dict[str, Any]) -> str:
              if isinstance(c, dict) and isinstance(c.get("env"), dict)}
     found.discard("None")
     found.discard("none")
-    return f" **Realism: {', '.join(sorted(found))}** (ROS/Stage realism)." if found else ""
+    return (f" **Realism: {escape(', '.join(sorted(found)))}** (ROS/Stage realism)." if found
+            else "")
 
 
 def _paper_sections(table: pd.DataFrame, tukey_study: pd.DataFrame, policies: list[str],
@@ -297,16 +339,17 @@ def _paper_sections(table: pd.DataFrame, tukey_study: pd.DataFrame, policies: li
         v.insert(0, "policy", policy)
         csvs[f"verdicts_{_slug(policy)}.csv"] = v
         n_rep = int((v.verdict == "reproduced").sum())
-        summary.append(f"- **{policy}**: {n_rep} of {len(v)} of the study's findings "
+        summary.append(f"- **{escape(policy)}**: {n_rep} of {len(v)} of the study's findings "
                        f"reproduced.")
-        md += [f"### {policy}: {n_rep} of {len(v)} findings reproduced", "",
+        md += [f"### {escape(policy)}: {n_rep} of {len(v)} findings reproduced", "",
                _md_table(v[["rq", "metric", "pair", "study", "ours", "verdict"]]), "",
-               f"#### {policy}: Tukey HSD behind these verdicts (alignment: {UNWRAPPED})", "",
+               f"#### {escape(policy)}: Tukey HSD behind these verdicts (alignment: "
+               f"{UNWRAPPED})", "",
                _md_table(tukey_study[tukey_study.policy == policy][
                    ["group", "metric", "group1", "group2", "meandiff", "p_adj", "lower",
                     "upper", "reject"]]), ""]
         v_table, count_table = study_side_by_side(table, policy)
-        md += [f"#### {policy}: the study's numbers beside ours (mean ± population std; "
+        md += [f"#### {escape(policy)}: the study's numbers beside ours (mean ± population std; "
                f"alignment: {UNWRAPPED})", "", _md_table(v_table), "", _md_table(count_table),
                ""]
     return md
@@ -326,7 +369,8 @@ def _block_section(table: pd.DataFrame, policies: list[str], per_follower: tuple
         parts.append(scores)
         found = scores["findings"]
         summary.append(
-            f"- **{policy}**, {len(scores)} blocks of {BLOCK_SIZE} seeds: findings reproduced "
+            f"- **{escape(policy)}**, {len(scores)} blocks of {BLOCK_SIZE} seeds: findings "
+            f"reproduced "
             f"per block {', '.join(map(str, found))} of {scores['of'].iloc[0]} (mean "
             f"{found.mean():.2f}, range {found.min()}–{found.max()}); magnitudes within 2× "
             f"mean {scores['magnitudes_within_2x'].mean():.1f} of "
@@ -354,11 +398,12 @@ def _comparison_section(table: pd.DataFrame, policies: list[str],
         counts = g["safety"].value_counts()
         better = int((g["total"] == "better").sum())
         summary.append(
-            f"- **{policy}** against {policies[0]}: total violation better in {better} of "
+            f"- **{escape(policy)}** against {escape(policies[0])}: total violation better in "
+            f"{better} of "
             f"{len(g)} cases; safety: " + ", ".join(f"{k} in {v}" for k, v in counts.items())
             + ".")
     return ["## Policies compared per case", "",
-            f"Each policy against the baseline **{policies[0]}**, case by case: difference "
+            f"Each policy against the baseline **{escape(policies[0])}**, case by case: difference "
             f"(policy − baseline) with its 95 % percentile-bootstrap CI and Welch's t-test, "
             f"Holm-corrected over all rows. A difference counts when its corrected p < 0.05 "
             f"and its CI excludes 0. V_* (lower is better): *better*, *worse* or *no "
@@ -402,7 +447,7 @@ def _figures(table: pd.DataFrame, suite: dict[str, Any], per_follower: tuple[str
     study_rq = {v: k for k, v in GROUP_OF_RQ.items()}
     unwrapped_only = alignment_rule(suite) == UNWRAPPED
     for (policy, group), rows in table.groupby(["policy", "group"], sort=False):
-        name = f"{_slug(policy)}_{group}"
+        name = f"{_slug(policy)}_{_slug(group)}"
         rq = study_rq.get(group) if is_paper else None
         if group in per_follower:
             metrics = COUNT_METRICS
@@ -423,7 +468,7 @@ def _figures(table: pd.DataFrame, suite: dict[str, Any], per_follower: tuple[str
             path = figures.level_bars(rows, metrics, f"{policy}: {group} "
                                       f"({rows.factor.iloc[0]})", fig_dir / name, study,
                                       followers)
-        md += [f"![{policy} {group}](figures/{path.name})", ""]
+        md += [f"![{escape(policy)} {escape(group)}](figures/{path.name})", ""]
     md += ["![Safety per case and policy](figures/safety.png)", ""] if len(policies) == 1 \
         else []
     figures.safety_bars(table, fig_dir / "safety")
@@ -431,29 +476,32 @@ def _figures(table: pd.DataFrame, suite: dict[str, Any], per_follower: tuple[str
         plot = table.assign(total=table[list(V_METRICS)].sum(axis=1))
         figures.policy_bars(plot, "total", fig_dir / "policies_total",
                             "Total violation V_sep + V_coh + V_align per case")
-    md += _trajectory_figures(table, fig_dir)
     return md
 
 
-def _trajectory_figures(table: pd.DataFrame, fig_dir: Path) -> list[str]:
+def _trajectory_figures(table: pd.DataFrame, fig_dir: Path, out: Path) -> list[str]:
     if "trajectory" not in table:
         return []
     md = ["### Sample trajectories (first seed of each case)", ""]
-    out = fig_dir.parent
     shown = table.dropna(subset=["trajectory"]).drop_duplicates(["policy", "case"])
     for _, row in shown.iterrows():
         traj = out / "trajectories" / str(row.trajectory)
+        if not _own_file(out / "trajectories", str(row.trajectory)):
+            md.append(escape(f"(trajectory of {row.policy}: {row.case}, seed {row.seed} not "
+                             f"shown: {str(row.trajectory)!r} is not a file inside "
+                             f"trajectories/)"))
+            continue
         if not traj.is_file():
             continue
         try:
             rec = Recording.from_parquet(traj)
         except (OSError, ValueError) as exc:  # a damaged file must not sink the report
-            md.append(f"(trajectory of {row.policy}: {row.case}, seed {row.seed} not shown: "
-                      f"{exc})")
+            md.append(escape(f"(trajectory of {row.policy}: {row.case}, seed {row.seed} not "
+                             f"shown: {exc})"))
             continue
         path = figures.trajectories(rec, f"{row.policy}: {row.case}, seed {row.seed}",
                                     fig_dir / f"traj_{_slug(row.policy)}_{_slug(row.case)}")
-        md.append(f"![{row.policy}: {row.case}](figures/{path.name})")
+        md.append(f"![{escape(row.policy)}: {escape(row.case)}](figures/{path.name})")
     return [*md, ""]
 
 

@@ -376,8 +376,11 @@ def _cases_of(tasks: Sequence[Task], suite: Suite) -> dict[str, list[str]]:
 
 def _write_results(out: Path, table: pd.DataFrame, suite: Suite,
                    policies: Sequence[PolicySpec]) -> None:
-    with atomic_path(out / "results.parquet") as tmp:
-        table.to_parquet(tmp, index=False)
+    import pyarrow as pa
+
+    from boids_env.parquet import write_table
+
+    write_table(pa.Table.from_pandas(table, preserve_index=False), out / "results.parquet")
     to_csv(table, out / "results.csv")
     write_json(out / "suite.json", suite_to_dict(suite, policies))
 

@@ -15,11 +15,16 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.files import atomic_path
+from boids_env.files import atomic_path, read_zip_entry
 from boids_env.policies.base import BatchPolicy
 from boids_env.policies.mlp_actor import ACTOR_ENTRY, MLPActor
 
 META_ENTRY = "boids.json"
+META_LIMIT = 1 << 20
+"""The most bytes a model's ``boids.json`` may hold (boids train writes a few kB)."""
+ACTOR_LIMIT = 1 << 28
+"""The most bytes a model's ``boids_actor.npz`` may hold, 256 MiB (the shipped actor: 0.12
+MiB; a layer of 4,096 × 4,096, the widest a training config allows: 64 MiB)."""
 ALGORITHMS = ("ppo", "sac", "td3", "a2c", "ddpg")
 
 
@@ -41,8 +46,8 @@ def read_meta(path: str | Path) -> dict[str, Any]:
         with zipfile.ZipFile(path) as zf:
             if META_ENTRY not in zf.namelist():
                 return {}
-            raw = zf.read(META_ENTRY)
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError) as exc:
+            raw = read_zip_entry(zf, META_ENTRY, META_LIMIT)  # a zip bomb is refused
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, ValueError) as exc:
         raise ValueError(f"cannot read SB3 model {path}: {exc}") from exc
     try:
         meta = json.loads(raw)
@@ -138,7 +143,11 @@ def load_model_policy(path: str | Path, device: str = "cpu") -> BatchPolicy:
     meta = read_meta(path)  # a file that is not a zip is refused here, by name
     if device == "cpu":
         with zipfile.ZipFile(path) as zf:
-            raw = zf.read(ACTOR_ENTRY) if ACTOR_ENTRY in zf.namelist() else None
+            try:
+                raw = (read_zip_entry(zf, ACTOR_ENTRY, ACTOR_LIMIT)
+                       if ACTOR_ENTRY in zf.namelist() else None)
+            except ValueError as exc:
+                raise ValueError(f"SB3 model {path}: {exc}") from None
         if raw is not None:
             env_fields = _env_fields(path, meta.get("env_fields"))
             try:

@@ -12,6 +12,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
 from boids_env.environment import BoidsEnv
 from boids_env.eval.episode import run_episode
+from boids_env.files import atomic_path
 from boids_env.policies.sb3_policy import SB3Policy, write_meta
 from boids_env.train.vec_env import EPISODE_INFO
 
@@ -116,8 +117,9 @@ class Checkpoints(CheckpointCallback):
         self.meta = meta
 
     def _on_step(self) -> bool:
-        due = self.n_calls % self.save_freq == 0
-        result = super()._on_step()
-        if due:
-            write_meta(self._checkpoint_path(extension="zip"), self.meta, self.model)
-        return result
+        if self.n_calls % self.save_freq == 0:
+            # SB3's own save writes the zip in place; here it is written whole or not at all
+            with atomic_path(self._checkpoint_path(extension="zip")) as tmp:
+                self.model.save(tmp)
+                write_meta(tmp, self.meta, self.model)
+        return True

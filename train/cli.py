@@ -17,11 +17,15 @@ from boids_env.extras import require
 def _train_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("train", help="train followers with Stable-Baselines3 (train extra)",
                        description="Trains one shared follower policy (PPO by default) on the "
-                       "flock; writes model.zip, config.json, evaluations.csv, checkpoints/ "
-                       "and tb/ (TensorBoard) to --out.")
+                       "flock; writes model.zip, config.json, evaluations.csv, checkpoints/, "
+                       "tb/ (TensorBoard) and manifest.json to --out, which must be empty or "
+                       "new unless --overwrite (or a --resume of the training there).")
     p.add_argument("--config", help="a TOML file of TrainConfig fields, or the name of a "
                    "shipped recipe (ppo_safe, ppo_safe_stage2, ppo_study); flags override it")
     p.add_argument("--out", default="runs/train", help="output folder (runs/train)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an earlier training in --out (only what it wrote, as listed in "
+                   "its manifest.json; your own files there are kept)")
     p.add_argument("--algorithm", choices=("ppo", "sac"), default=None)
     p.add_argument("--timesteps", type=int, default=None, dest="total_timesteps",
                    help="follower-steps in all (PPO rounds up to whole rollouts)")
@@ -37,7 +41,9 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--leader-speeds", type=float, nargs="+", default=None)
     p.add_argument("--eval-every", type=int, default=None, help="timesteps (0: never)")
     p.add_argument("--checkpoint-every", type=int, default=None, help="timesteps (0: never)")
-    p.add_argument("--resume", default=None, help="checkpoint zip to continue from")
+    p.add_argument("--resume", default=None, help="checkpoint zip to continue from, up to "
+                   "--timesteps in all (more than it has); goes on in the --out of the "
+                   "same config")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_train)
 
@@ -62,7 +68,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
             raise ValueError("--device cuda but torch sees no GPU; use --device cpu or auto")
     from boids_env.train.run import train
 
-    model = train(config, args.out, resume=args.resume, progress_bar=not args.no_progress)
+    model = train(config, args.out, resume=args.resume, overwrite=args.overwrite,
+                  progress_bar=not args.no_progress)
     written = sorted(p.name + ("/" if p.is_dir() else "") for p in model.parent.iterdir())
     print(f"wrote {model}; {args.out} holds {', '.join(written)}")
     return 0

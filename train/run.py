@@ -2,19 +2,30 @@
 
 Writes to the output folder: ``config.json`` (the resolved :class:`TrainConfig`),
 ``model.zip`` (the final model, loadable by ``boids run --policy``), ``best_model.zip`` (best
-periodic evaluation), ``evaluations.csv``, ``checkpoints/model_<steps>_steps.zip`` and
-TensorBoard logs under ``tb/``.
+periodic evaluation), ``evaluations.csv``, ``checkpoints/model_<steps>_steps.zip``, TensorBoard
+logs under ``tb/`` and ``manifest.json``.
+
+The folder belongs to one training, as an eval folder to one evaluation
+(:mod:`boids_env.eval.folder`): a folder holding anything else is refused unless
+``overwrite``, which first removes what an earlier training of ours wrote (only the names
+above) and keeps the user's own files; a training resumed from a checkpoint goes on in the
+folder of the same config. The training writes into the folder as it goes, so TensorBoard
+shows it live and an interrupted run keeps its checkpoints; every model zip is written
+atomically (a kill never leaves a torn one).
 """
 
 from __future__ import annotations
 
 import json
+import zipfile
 from pathlib import Path
 from typing import Any
 
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.vec_env import VecMonitor
 
+from boids_env.eval import folder
+from boids_env.files import atomic_path, read_zip_entry, write_json
 from boids_env.policies.sb3_policy import algorithm_class, read_meta, write_meta
 from boids_env.train.callbacks import Checkpoints, FlockEvalCallback, TrainingMetricsCallback
 from boids_env.train.config import TrainConfig
@@ -65,6 +76,60 @@ def model_meta(config: TrainConfig) -> dict[str, Any]:
             "train_config": config.to_dict()}
 
 
+DATA_LIMIT = 16 << 20
+"""The most bytes a checkpoint's SB3 ``data`` entry may hold when its timesteps are read
+(SB3 writes a few hundred kB)."""
+RESUME_FREE = ("total_timesteps", "processes", "torch_threads", "device", "resume_log_std")
+"""Config fields that do not make another training: a resume may change them."""
+
+
+def identity(config: TrainConfig) -> dict[str, Any]:
+    """What makes two trainings the same (a resume goes on in the folder of the same one)."""
+    return {k: v for k, v in config.to_dict().items() if k not in RESUME_FREE}
+
+
+def checkpoint_timesteps(path: str | Path) -> int:
+    """The follower-steps an SB3 model zip has trained, from its ``data`` entry (without
+    loading the model); ``ValueError`` naming the file when it is not such a zip."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            data = json.loads(read_zip_entry(zf, "data", DATA_LIMIT))
+        steps = data["num_timesteps"]
+    except (OSError, zipfile.BadZipFile, EOFError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"cannot read the checkpoint to resume {path}: not an SB3 model zip "
+                         f"({exc})") from None
+    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
+        raise ValueError(f"checkpoint {path}: num_timesteps must be a count, got {steps!r}")
+    return steps
+
+
+def check_resume(config: TrainConfig, out: Path, resume: str | Path | None,
+                 overwrite: bool) -> None:
+    """Refuses, before anything is written, a resume that would train nothing or of another
+    algorithm, a checkpoint that ``overwrite`` would delete, and ``resume_log_std`` without a
+    resume."""
+    if resume is None:
+        if config.resume_log_std is not None:
+            raise ValueError("resume_log_std is set but no checkpoint is resumed: it resets the "
+                             "exploration of a trained model (give --resume CHECKPOINT.zip)")
+        return
+    if not Path(resume).is_file():
+        raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
+    done = checkpoint_timesteps(resume)
+    if config.total_timesteps <= done:
+        raise ValueError(f"--timesteps (total_timesteps) must exceed the {done:,} follower-steps "
+                         f"checkpoint {resume} has already trained, got "
+                         f"{config.total_timesteps:,}: a resume trains on until the total, so "
+                         f"this one would train nothing")
+    saved = read_meta(resume).get("algorithm", config.algorithm)
+    if saved != config.algorithm:
+        raise ValueError(f"checkpoint {resume} was trained with {saved}, the config says "
+                         f"algorithm={config.algorithm!r}")
+    if overwrite and Path(resume).resolve().is_relative_to(out.resolve()):
+        raise ValueError(f"--resume {resume} is inside --out {out}, which --overwrite would "
+                         f"empty first: copy the checkpoint elsewhere, or choose another --out")
+
+
 def whole_rollouts(config: TrainConfig, slots: int, remaining: int) -> int:
     """``remaining`` follower-steps rounded up to what the algorithm really runs: PPO collects
     whole rollouts of ``n_steps`` × slots, SAC ``train_freq`` × slots per update."""
@@ -73,14 +138,20 @@ def whole_rollouts(config: TrainConfig, slots: int, remaining: int) -> int:
 
 
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
-          progress_bar: bool = False, verbose: int = 0) -> Path:
+          overwrite: bool = False, progress_bar: bool = False, verbose: int = 0) -> Path:
     """Trains a follower policy and returns the path of the final ``model.zip``.
+
+    Everything is checked before the folder is touched.
 
     Args:
         config: the run's configuration.
-        out: output folder (created).
-        resume: a checkpoint zip of this run to continue from; training goes on until
-            ``config.total_timesteps`` in all (the env copies restart their episodes).
+        out: output folder (created); it belongs to this training (see the module).
+        resume: a checkpoint zip to continue from; training goes on until
+            ``config.total_timesteps`` in all (which must exceed the checkpoint's; the env
+            copies restart their episodes). In the folder of a training of the same config
+            (other timesteps, processes, threads or device allowed) it goes on there.
+        overwrite: replace an earlier training (or other outputs of ours) in ``out``: only
+            what it wrote is removed.
         progress_bar: show SB3's progress bar (tqdm + rich).
         verbose: SB3 verbosity (0 quiet, 1 tables).
     """
@@ -88,26 +159,20 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
 
     check_episodes(config)
     out = Path(out)
-    if resume is not None and not Path(resume).is_file():
-        raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
-    if resume is None and config.resume_log_std is not None:
-        raise ValueError("resume_log_std is set but no checkpoint is resumed: it resets the "
-                         "exploration of a trained model (give --resume CHECKPOINT.zip)")
-    out.mkdir(parents=True, exist_ok=True)
-    torch.set_num_threads(config.resolved_threads())
+    folder.check_target(out)
+    check_resume(config, out, resume, overwrite)
     device = config.resolved_device()
     if device == "cuda" and not torch.cuda.is_available():
         raise ValueError("device='cuda' but torch sees no GPU; use device='cpu' or 'auto'")
-    (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
+    folder.claim(out, identity(config), overwrite=overwrite, owner=folder.TRAIN,
+                 resume=resume is not None)
+    torch.set_num_threads(config.resolved_threads())
+    write_json(out / "config.json", config.to_dict())
     meta = model_meta(config)
     venv = VecMonitor(make_vec_env(config))
     cls = algorithm_class(config.algorithm)
     try:
         if resume is not None:
-            saved = read_meta(resume).get("algorithm", config.algorithm)
-            if saved != config.algorithm:
-                raise ValueError(f"checkpoint {resume} was trained with {saved}, the config "
-                                 f"says algorithm={config.algorithm!r}")
             model = cls.load(resume, env=venv, device=device, tensorboard_log=str(out / "tb"))
             model.set_random_seed(config.seed)
             if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
@@ -119,8 +184,9 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
         remaining = config.total_timesteps - (model.num_timesteps if resume else 0)
 
         def save(path: Path) -> None:
-            model.save(path)
-            write_meta(path, meta, model)
+            with atomic_path(path) as tmp:  # a kill never leaves a torn model
+                model.save(tmp)
+                write_meta(tmp, meta, model)
 
         evaluator = FlockEvalCallback(out, config.eval_every, config.eval_seeds,
                                       config.env_fields, save_best=save)

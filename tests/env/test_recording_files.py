@@ -10,6 +10,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from boids_env.config import EnvConfig
+from boids_env.parquet import DIGEST
 from boids_env.recording import Recording
 
 
@@ -28,8 +29,12 @@ def write(tmp_path, table: pa.Table, name: str = "r.parquet"):
 
 
 def table_of(tmp_path, rec: Recording | None = None) -> pa.Table:
+    """A recording's table to craft a file from, without the digest of its schema (a crafted
+    file has none; with it, every change below would be refused as damage)."""
     (rec or small()).to_parquet(tmp_path / "src.parquet")
-    return pq.read_table(str(tmp_path / "src.parquet"))
+    table = pq.read_table(str(tmp_path / "src.parquet"))
+    meta = {k: v for k, v in table.schema.metadata.items() if k != DIGEST}
+    return table.replace_schema_metadata(meta)
 
 
 def with_column(table: pa.Table, name: str, values) -> pa.Table:
@@ -155,3 +160,57 @@ def test_writing_over_a_folder_is_refused(tmp_path):
     with pytest.raises(IsADirectoryError, match="it is a folder"):
         small().to_parquet(folder)
     assert (folder / "mine.txt").read_text() == "user data"
+
+
+def _same(a: Recording, b: Recording) -> bool:
+    arrays = ("time", "positions", "velocities", "commanded")
+    forces_a, forces_b = a.forces or {}, b.forces or {}
+    return (a.config == b.config and a.extra == b.extra
+            and all(np.array_equal(getattr(a, k), getattr(b, k)) for k in arrays)
+            and np.array_equal(a.leader_path, b.leader_path) and forces_a.keys() == forces_b.keys()
+            and all(np.array_equal(forces_a[k], forces_b[k], equal_nan=True) for k in forces_a))
+
+
+def test_a_damaged_file_is_refused_never_read_back_as_other_numbers(tmp_path):
+    """Bit rot: one byte flipped anywhere (data pages, page headers, metadata) is refused by
+    its page checksum or the metadata's SHA-256, or changes nothing that is read."""
+    rec = small(robots=4, steps=30)
+    rec.forces = {"separation": np.random.default_rng(1).normal(size=(30, 3, 2))}
+    rec.leader_path = np.array([[0.0, 0.0], [1.0, 0.5]])
+    rec.to_parquet(tmp_path / "r.parquet")
+    raw = (tmp_path / "r.parquet").read_bytes()
+    original = Recording.from_parquet(tmp_path / "r.parquet")
+    damaged = tmp_path / "d.parquet"
+    changed = []
+    for at in np.linspace(4, len(raw) - 9, 150).astype(int):  # inside the magic bytes
+        flipped = bytearray(raw)
+        flipped[at] ^= 0x5A
+        damaged.write_bytes(bytes(flipped))
+        try:
+            back = Recording.from_parquet(damaged)
+        except ValueError:
+            continue
+        if not _same(back, original):
+            changed.append(int(at))
+    assert not changed, f"flips at bytes {changed} of {len(raw)} read back as other data"
+
+
+def test_a_huge_index_is_refused_before_anything_is_allocated(tmp_path):
+    table = table_of(tmp_path)
+    robots = table.column("robot").to_numpy().copy()
+    robots[-1] = 2**40  # asked numpy for 8 TiB
+    with pytest.raises(ValueError, match=r"robot index 1099511627776 is beyond the file's 12 "):
+        Recording.from_parquet(write(tmp_path, with_column(table, "robot", robots)))
+    steps = table.column("step").to_numpy().copy()
+    steps[0] = 2**62
+    with pytest.raises(ValueError, match=r"step index 4611686018427387904 is beyond"):
+        Recording.from_parquet(write(tmp_path, with_column(table, "step", steps)))
+
+
+def test_force_columns_without_their_pair_are_refused(tmp_path):
+    rec = small()
+    rec.forces = {"separation": np.zeros((4, 2, 2))}
+    table = table_of(tmp_path, rec).drop_columns(["force_separation_y"])
+    with pytest.raises(ValueError, match=r"force columns must come in _x/_y pairs; "
+                                         r"\['force_separation_y'\]"):
+        Recording.from_parquet(write(tmp_path, table))

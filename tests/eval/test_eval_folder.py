@@ -6,7 +6,9 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
+import pyarrow.parquet
 import pytest
 
 from boids_env.eval.folder import MANIFEST
@@ -20,6 +22,7 @@ from boids_env.eval.runner import (
     trajectory_name,
 )
 from boids_env.eval.suites import suite_from_dict
+from boids_env.files import atomic_path, write_json
 from boids_env.train.cli import main
 
 TINY = {"name": "tiny", "seeds": 2, "defaults": {"robots": 3, "max_cycles": 10},
@@ -140,11 +143,11 @@ def test_results_survive_a_full_disk(tmp_path, monkeypatch):
     _run(tmp_path, {**TINY, "seeds": 1})
     before = pd.read_parquet(tmp_path / "results.parquet")
 
-    def disk_full(self, path, *args, **kwargs):
+    def disk_full(table, path, *args, **kwargs):
         Path(path).write_bytes(b"PAR1 partial")
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(pd.DataFrame, "to_parquet", disk_full)
+    monkeypatch.setattr(pyarrow.parquet, "write_table", disk_full)
     with pytest.raises(OSError, match="No space"):
         _run(tmp_path)
     monkeypatch.undo()
@@ -152,11 +155,90 @@ def test_results_survive_a_full_disk(tmp_path, monkeypatch):
     assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
 
 
+def _killed_write(target):
+    """What a write of ``target`` killed half-way leaves (a child process dies inside
+    ``atomic_path``, its cleanup never running); returns its temporary folder."""
+    before = set(target.parent.iterdir())
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child
+        try:
+            with atomic_path(target) as tmp:
+                tmp.write_bytes(b"PAR1 torn")
+                os._exit(0)
+        finally:
+            os._exit(1)
+    os.waitpid(pid, 0)
+    (box,) = set(target.parent.iterdir()) - before
+    return box
+
+
 def test_temporaries_left_by_a_killed_write_are_cleared_on_resume(tmp_path):
     _run(tmp_path, {**TINY, "seeds": 1})
-    dead = tmp_path / ".results.parquet.tmp-999999999-0123abcd"  # no such process
-    dead.write_bytes(b"PAR1 torn")
-    live = tmp_path / "trajectories" / f".x.parquet.tmp-{os.getpid()}-0123abcd"
-    live.write_bytes(b"being written")
-    _run(tmp_path)
-    assert not dead.exists() and live.exists()
+    dead = _killed_write(tmp_path / "results.parquet")
+    dead_traj = _killed_write(tmp_path / "trajectories" / "x.parquet")
+    with atomic_path(tmp_path / "trajectories" / "y.parquet") as live:  # this process: alive
+        live.write_bytes(b"being written")
+        _run(tmp_path)
+        assert live.exists()
+    assert not dead.exists() and not dead_traj.exists()
+
+
+def test_a_users_file_named_like_a_temporary_is_never_removed(tmp_path):
+    _run(tmp_path, {**TINY, "seeds": 1})
+    mine = tmp_path / ".results.parquet.tmp-999999999-0123abcd"  # no such process
+    mine.write_text("my notes")
+    folder = tmp_path / ".trajectories.tmp-999999999-89abcdef"
+    folder.mkdir()
+    (folder / "data.csv").write_text("1,2\n")
+    _run(tmp_path)  # resume
+    _run(tmp_path, OTHER, overwrite=True)
+    assert mine.read_text() == "my notes" and (folder / "data.csv").read_text() == "1,2\n"
+
+
+def test_overwrite_removes_only_names_an_evaluation_writes(tmp_path):
+    """A manifest is a file anyone can edit: the entries it lists are removed only when they
+    are names boids eval writes."""
+    out = tmp_path / "out"
+    _run(out)
+    (out / "my_thesis_data.csv").write_text("precious")
+    (out / "thesis").mkdir()
+    (out / "thesis" / "ch1.tex").write_text("precious too")
+    (tmp_path / "outside.txt").write_text("not in the folder")
+    manifest = json.loads((out / MANIFEST).read_text())
+    manifest["files"] += ["my_thesis_data.csv", "thesis", "../outside.txt", "..", "."]
+    (out / MANIFEST).write_text(json.dumps(manifest))
+    _run(out, OTHER, overwrite=True)
+    assert (out / "my_thesis_data.csv").read_text() == "precious"
+    assert (out / "thesis" / "ch1.tex").read_text() == "precious too"
+    assert (tmp_path / "outside.txt").is_file()
+    assert not set(json.loads((out / MANIFEST).read_text())["files"]) & {
+        "my_thesis_data.csv", "thesis"}
+
+
+def test_a_folder_of_another_command_is_refused_even_with_overwrite(tmp_path):
+    write_json(tmp_path / MANIFEST, {"kind": "boids train", "identity": {},
+                                     "files": ["model.zip"]})
+    (tmp_path / "model.zip").write_bytes(b"weights")
+    with pytest.raises(ValueError, match=r"belongs to boids train .*even with --overwrite"):
+        _run(tmp_path, overwrite=True)
+    assert (tmp_path / "model.zip").read_bytes() == b"weights"
+
+
+def test_a_damaged_results_table_is_refused_not_reported(tmp_path):
+    from boids_env.eval.report import load_results
+
+    _run(tmp_path, {**TINY, "seeds": 1})
+    path = tmp_path / "results.parquet"
+    raw, (table, _) = path.read_bytes(), load_results(tmp_path)
+    changed = []
+    for at in np.linspace(4, len(raw) - 9, 60).astype(int):
+        flipped = bytearray(raw)
+        flipped[at] ^= 0x5A
+        path.write_bytes(bytes(flipped))
+        try:
+            back, _ = load_results(tmp_path)
+        except ValueError:
+            continue
+        if not back.equals(table):
+            changed.append(int(at))
+    assert not changed, f"flips at bytes {changed} of {len(raw)} changed the results"

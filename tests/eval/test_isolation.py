@@ -115,7 +115,8 @@ def test_boids_eval_exits_1_and_the_report_lists_failed_episodes(tmp_path, capsy
     assert "1 episodes failed" in err and "SystemExit: 3" in err
     report = (out / "report.md").read_text()
     assert "## Failed episodes" in report
-    assert "faulty_policies:RaisesSystemExit" in report and "SystemExit: 3" in report
+    page = (out / "report.html").read_text()  # names are escaped in the Markdown
+    assert "faulty_policies:RaisesSystemExit" in page and "SystemExit: 3" in page
 
 
 def test_boids_eval_exits_1_when_every_episode_failed(tmp_path, capsys):

@@ -135,3 +135,117 @@ def test_out_naming_a_file_is_refused(tmp_path):
     (tmp_path / "f").write_text("")
     with pytest.raises(FileExistsError, match="is a file"):
         _run(tmp_path / "f")
+
+
+OLD = {"metrics.json": b"old", "config.json": b"old", "episode.gif": b"old",
+       "episode_mcap/episode_mcap.mcap": b"old"}
+NEW = {"metrics.json": b"new", "config.json": b"new", "trajectory.parquet": b"new",
+       "episode_mcap/episode_mcap.mcap": b"new"}
+
+
+def _put(folder, files):
+    for name, data in files.items():
+        (folder / name).parent.mkdir(exist_ok=True)
+        (folder / name).write_bytes(data)
+
+
+def _write(out, files, **kwargs):
+    with RunFolder(out, **kwargs) as tmp:
+        _put(tmp, files)
+
+
+def _killed_in_commit(out, files, k, can_exchange=True):
+    """Writes ``files`` as a run into ``out`` in a child process that SIGKILLs itself at the
+    k-th rename of the commit (a file replaced, a folder moved or exchanged); returns whether
+    it was killed (False: the commit has fewer than k renames)."""
+    from boids_env import temporaries
+
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child
+        try:
+            with RunFolder(out, overwrite=True) as tmp:
+                _put(tmp, files)
+                calls = [0]
+
+                def dying(real):
+                    def call(*args, **kwargs):
+                        calls[0] += 1
+                        if calls[0] == k:
+                            os.kill(os.getpid(), signal.SIGKILL)
+                        return real(*args, **kwargs)
+                    return call
+
+                os.rename, os.replace = dying(os.rename), dying(os.replace)
+                temporaries.exchange = (dying(temporaries.exchange) if can_exchange
+                                        else lambda a, b: False)
+        finally:
+            os._exit(0)
+    _, status = os.waitpid(pid, 0)
+    return os.WIFSIGNALED(status)
+
+
+def _contents(out):
+    return {str(p.relative_to(out)): p.read_bytes() for p in out.rglob("*")
+            if p.is_file() and p.name != MANIFEST}
+
+
+@pytest.mark.parametrize("mine, can_exchange", [({}, True), ({}, False),
+                                                 ({"notes.txt": b"mine"}, True)],
+                         ids=["only-ours", "only-ours-no-exchange", "with-users-files"])
+def test_a_run_killed_at_any_point_of_its_commit_leaves_one_whole_run(tmp_path, mine,
+                                                                      can_exchange):
+    """Killed at each rename of the final moves, the folder is there and holds the earlier
+    run or the new one (never none, never a mix of both) once the next run into it has
+    cleared what the killed one left; with nothing of the user's in it, and where the OS
+    exchanges two names, it is whole at every instant."""
+    old, new = {**OLD, **mine}, {**NEW, **mine}
+    for k in range(1, 20):
+        out = tmp_path / f"k{k}" / "run"
+        _write(out, OLD)
+        for name, data in mine.items():
+            (out / name).write_bytes(data)
+        killed = _killed_in_commit(out, NEW, k, can_exchange)
+        if not mine and can_exchange:
+            assert out.is_dir() and _contents(out) in (old, new), (k, _contents(out))
+        if mine:  # the user's files never move
+            assert out.is_dir() and mine.items() <= _contents(out).items(), k
+        RunFolder(out, overwrite=True)  # the next run into the folder
+        assert _contents(out) in (old, new), (k, _contents(out))
+        listed = json.loads((out / MANIFEST).read_text())["files"]
+        assert set(listed) == {n.split("/")[0] for n in _contents(out)} - set(mine), k
+        assert _names(out.parent) == ["run"], (k, _names(out.parent))
+        if not killed:
+            assert _contents(out) == new
+            break
+    else:
+        pytest.fail("the commit never finished")
+
+
+def test_what_a_killed_run_leaves_beside_out_is_removed_by_the_next_run(tmp_path):
+    out = tmp_path / "run"
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child, killed while writing
+        try:
+            with RunFolder(out) as tmp:
+                (tmp / "metrics.json").write_text("{}")
+                os._exit(0)
+        finally:
+            os._exit(1)
+    os.waitpid(pid, 0)
+    (left,) = [p for p in tmp_path.iterdir() if p.name.startswith(".run.run-")]
+    users = tmp_path / ".run.run-999999999-0123abcd"  # a name like ours, no marker
+    users.mkdir()
+    (users / "data.csv").write_text("1,2\n")
+    lookalike = tmp_path / ".run.run-999999998-89abcdef"
+    lookalike.write_text("a file")
+    _run(out)
+    assert not left.exists(), "the killed run's temporary folder is removed"
+    assert (users / "data.csv").read_text() == "1,2\n" and lookalike.read_text() == "a file"
+    assert sorted(_names(tmp_path)) == sorted(["run", users.name, lookalike.name])
+
+
+def test_boids_run_refuses_an_eval_folder_even_with_overwrite(tmp_path):
+    write_json(tmp_path / MANIFEST, {"kind": "boids eval", "identity": {},
+                                     "files": ["results.parquet"]})
+    with pytest.raises(FileExistsError, match="belongs to boids eval"):
+        _run(tmp_path, overwrite=True)

@@ -88,3 +88,46 @@ def test_a_truncated_model_is_a_clear_error(tmp_path):
     with pytest.raises(ValueError, match=r"cannot add metadata to SB3 model .*cut.zip"):
         write_meta(path, {"algorithm": "ppo"})
     assert json.dumps(read_meta(LEARNED_MODEL))  # the shipped model's metadata still reads
+
+
+def _bomb(path, entry, size):
+    """A zip whose ``entry`` is ``{}`` padded with ``size`` spaces: valid JSON that inflates
+    from kilobytes to ``size`` bytes (written in chunks, never held whole)."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf, zf.open(entry, "w") as fh:
+        fh.write(b"{}")
+        for _ in range(size >> 20):
+            fh.write(b" " * (1 << 20))
+    return path
+
+
+def test_a_zip_bomb_is_refused_before_it_is_inflated(tmp_path):
+    import tracemalloc
+
+    from boids_env.policies.registry import load_policy
+
+    path = _bomb(tmp_path / "bomb.zip", META_ENTRY, 64 << 20)
+    assert path.stat().st_size < 1 << 20, "a small file"
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match=r"bomb.zip: its entry boids.json holds "
+                                             r"67,108,866 bytes uncompressed, more than the "
+                                             r"1,048,576 allowed"):
+            read_meta(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 4 << 20, f"refused after allocating {peak:,} bytes"
+    with pytest.raises(ValueError, match="more than the 1,048,576 allowed"):
+        load_policy(str(path))
+
+
+def test_read_zip_entry_stops_at_its_limit(tmp_path):
+    from boids_env.files import read_zip_entry
+
+    path = _bomb(tmp_path / "b.zip", "x", 2 << 20)
+    with zipfile.ZipFile(path) as zf:
+        assert read_zip_entry(zf, "x", 3 << 20)[:3] == b"{} "
+        with pytest.raises(ValueError, match="entry x holds 2,097,154 bytes"):
+            read_zip_entry(zf, "x", 2 << 20)
+        with pytest.raises(KeyError):
+            read_zip_entry(zf, "missing", 10)
