@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
@@ -158,16 +159,29 @@ class ScenarioConfig:
 
 
 def _waypoints(value: Any) -> tuple[tuple[float, float], ...]:
-    try:
-        points = tuple((float(p[0]), float(p[1])) for p in value)
-        if any(len(p) != 2 for p in value):
-            raise ValueError
-    except (TypeError, ValueError, IndexError):
-        raise ValueError(f"waypoints must be a sequence of (x, y) pairs in metres, "
-                         f"got {value!r}") from None
+    """``value`` as ((x, y), ...) if it is a sequence of pairs of real numbers; a string is not
+    a pair (``"34"`` is not (3, 4)) and strings, bools and complex numbers are not coordinates
+    (``float()`` would take them)."""
+    message = f"waypoints must be a sequence of (x, y) pairs of numbers in metres, got {value!r}"
+    if not _pair_sequence(value):
+        raise ValueError(message)
+    points = []
+    for point in value:
+        if not _pair_sequence(point) or len(point) != 2 or not all(_real(c) for c in point):
+            raise ValueError(message)
+        points.append((float(point[0]), float(point[1])))
     if not all(math.isfinite(c) for p in points for c in p):
         raise ValueError(f"waypoints must be finite, got {value!r}")
-    return points
+    return tuple(points)
+
+
+def _pair_sequence(value: Any) -> bool:
+    """A list, tuple or numpy array (not a string, bytes or mapping, which also iterate)."""
+    return isinstance(value, list | tuple) or (isinstance(value, np.ndarray) and value.ndim >= 1)
+
+
+def _real(value: Any) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
 
 
 @dataclass(frozen=True)
