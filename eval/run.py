@@ -78,9 +78,12 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         from boids_env.eval.video import check_format
 
         check_format(fmt)
+    policy, preset = split_preset(policy, preset)
+    if leader_weight is not None and policy != "reynolds":
+        raise ValueError(f"leader_weight is a Reynolds parameter: it needs policy 'reynolds' "
+                         f"or 'reynolds@PRESET', got {policy!r}")
     folder = RunFolder(out, overwrite=overwrite) if out is not None else None  # refuse early
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
-    policy, preset = split_preset(policy, preset)
     pol = load_policy(policy, preset=preset, **overrides)
     params = getattr(pol, "params", None)
     env = BoidsEnv(**env_fields_for(pol, env_fields))

@@ -89,6 +89,75 @@ def test_ctrl_c_is_a_short_message_and_exit_130(tmp_path, capsys, monkeypatch):
     assert len(err) == 1 and "interrupted" in err[0] and str(tmp_path) in err[0]
 
 
+@pytest.fixture
+def nothing_starts(monkeypatch):
+    """The episode, the live window, the evaluation and the ROS node raise if reached: a flag
+    refused too late would start them."""
+    import boids_env.eval.live as live
+    import boids_env.eval.ros.controller as controller
+    import boids_env.eval.run as run
+    import boids_env.eval.runner as runner
+
+    def started(*args, **kwargs):
+        raise AssertionError("the command started its work before refusing the flag")
+
+    for module, name in ((run, "run"), (live, "run_live"), (runner, "run_suite"),
+                         (controller, "run_controller")):
+        monkeypatch.setattr(module, name, started)
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["run", "--policy", "random", "--leader-weight", "1.1"], "--leader-weight"),
+    (["run", "--policy", "learned", "--leader-weight", "1.1"], "--leader-weight"),
+    (["run", "--policy", "learned", "--preset", "boids_ros"], "--preset boids_ros"),
+    (["run", "--policy", "reynolds@boids_ros", "--preset", "paper"], "--preset paper"),
+    (["run", "--render", "human", "--policy", "random", "--leader-weight", "1"],
+     "--leader-weight"),
+    (["eval", "--policy", "learned", "--policy", "random", "--preset", "boids_ros"],
+     "--preset boids_ros"),
+    (["ros", "controller", "--policy", "learned", "--leader-weight", "1.1"], "--leader-weight"),
+    (["ros", "controller", "--policy", "random", "--preset", "boids_ros"], "--preset"),
+])
+def test_reynolds_flags_are_refused_for_other_policies(argv, named, tmp_path, capsys,
+                                                        nothing_starts):
+    out = ["--out", str(tmp_path / "o")] if argv[0] != "ros" else []
+    assert main([*argv, *out]) == 2
+    err = capsys.readouterr().err
+    assert named in err and "reynolds" in err, err
+    assert "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["--render", "human", "--fast", "0"], r"--fast must be a speed-up in \(0, 1000\]"),
+    (["--render", "human", "--fast", "-1"], r"--fast must be .* got -1"),
+    (["--render", "human", "--fast", "nan"], r"--fast must be .* got nan"),
+    (["--fast", "2"], "--fast .* needs --render human"),
+    (["--render", "human", "--video"], r"--video: the live window \(--render human\) writes"),
+    (["--render", "human", "--bag", "--overwrite"], "--bag, --overwrite: the live window"),
+])
+def test_live_window_flags_are_checked(argv, named, tmp_path, capsys, nothing_starts):
+    assert main(["run", *argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(named, err), err
+    assert not (tmp_path / "o").exists()
+
+
+def test_run_live_refuses_a_bad_fast_factor_before_opening_a_window():
+    from boids_env.eval.live import run_live
+
+    with pytest.raises(ValueError, match=r"fast_factor must be in \(0.0, 1000.0\]"):
+        run_live(fast_factor=float("nan"))
+
+
+def test_run_refuses_a_leader_weight_for_another_policy(tmp_path):
+    from boids_env.eval.run import run
+
+    with pytest.raises(ValueError, match="leader_weight is a Reynolds parameter"):
+        run("random", leader_weight=1.1, out=tmp_path / "o")
+    assert not (tmp_path / "o").exists()
+
+
 def test_train_config_accepts_a_shipped_recipe_name():
     from boids_env.train.config import TrainConfig, resolve_recipe
 
