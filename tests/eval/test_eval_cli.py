@@ -46,3 +46,19 @@ def test_report_of_a_missing_folder_is_a_clear_error(tmp_path, capsys):
 def test_eval_rejects_a_preset_on_a_non_reynolds_policy(tmp_path, capsys):
     assert main(["eval", "--policy", "random@paper", "--out", str(tmp_path)]) == 2
     assert "only reynolds takes a @preset" in capsys.readouterr().err
+
+
+def test_eval_refuses_a_zip_that_is_no_model_before_writing(tmp_path, capsys):
+    """The README promises a policy that cannot load is refused first; a zip without a model
+    in it once made the folder, failed every episode and exited 1."""
+    import zipfile
+
+    junk = tmp_path / "junk.zip"
+    with zipfile.ZipFile(junk, "w") as archive:
+        archive.writestr("readme.txt", "not a model")
+    out = tmp_path / "out"
+    assert main(["eval", "--policy", str(junk), "--seeds", "1", "--out", str(out),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "junk.zip is not a Stable-Baselines3 model" in err and "Traceback" not in err, err
+    assert not out.exists()
