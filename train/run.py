@@ -15,6 +15,7 @@ from typing import Any
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.vec_env import VecMonitor
 
+from boids_env.policies.registry import SB3_ENTRIES
 from boids_env.policies.sb3_policy import algorithm_class, read_meta, write_meta
 from boids_env.train.callbacks import Checkpoints, FlockEvalCallback, TrainingMetricsCallback
 from boids_env.train.config import TrainConfig
@@ -54,6 +55,26 @@ def check_episodes(config: TrainConfig) -> None:
             ) from None
 
 
+def check_resume(resume: str | Path, config: TrainConfig) -> None:
+    """Refuses a checkpoint that cannot be resumed before anything is written: a missing file,
+    a file that is no zip, a zip without SB3's model entries, another algorithm's model."""
+    import zipfile
+
+    if not Path(resume).is_file():
+        raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
+    saved = read_meta(resume).get("algorithm", config.algorithm)  # refuses a non-zip by name
+    with zipfile.ZipFile(resume) as archive:
+        names = set(archive.namelist())
+    missing = [name for name in SB3_ENTRIES if name not in names]
+    if missing:
+        raise ValueError(f"--resume {resume} is not a Stable-Baselines3 checkpoint (its zip "
+                         f"lacks {', '.join(missing)}); give a model.zip or "
+                         f"checkpoints/model_<steps>_steps.zip of boids train")
+    if saved != config.algorithm:
+        raise ValueError(f"checkpoint {resume} was trained with {saved}, the config says "
+                         f"algorithm={config.algorithm!r}")
+
+
 def make_vec_env(config: TrainConfig) -> FlockVecEnv:
     """The VecEnv of a run over :func:`copy_specs`."""
     return FlockVecEnv(copy_specs(config), seed=config.seed, processes=config.processes)
@@ -88,27 +109,27 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
 
     check_episodes(config)
     out = Path(out)
-    if resume is not None and not Path(resume).is_file():
-        raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
+    if resume is not None:
+        check_resume(resume, config)
     if resume is None and config.resume_log_std is not None:
         raise ValueError("resume_log_std is set but no checkpoint is resumed: it resets the "
                          "exploration of a trained model (give --resume CHECKPOINT.zip)")
-    out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(config.resolved_threads())
     device = config.resolved_device()
     if device == "cuda" and not torch.cuda.is_available():
         raise ValueError("device='cuda' but torch sees no GPU; use device='cpu' or 'auto'")
-    (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
     meta = model_meta(config)
     venv = VecMonitor(make_vec_env(config))
     cls = algorithm_class(config.algorithm)
     try:
         if resume is not None:
-            saved = read_meta(resume).get("algorithm", config.algorithm)
-            if saved != config.algorithm:
-                raise ValueError(f"checkpoint {resume} was trained with {saved}, the config "
-                                 f"says algorithm={config.algorithm!r}")
-            model = cls.load(resume, env=venv, device=device, tensorboard_log=str(out / "tb"))
+            try:
+                model = cls.load(resume, env=venv, device=device,
+                                 tensorboard_log=str(out / "tb"))
+            except Exception as exc:  # SB3's load of a foreign file raises anything (asserts)
+                first = (str(exc).strip().splitlines() or [""])[0]  # torch's run on for lines
+                raise ValueError(f"cannot resume from {resume}: {type(exc).__name__}: {first}"
+                                 ) from None
             model.set_random_seed(config.seed)
             if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
                 with torch.no_grad():
@@ -116,6 +137,10 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
         else:
             model = cls("MlpPolicy", venv, device=device, verbose=verbose,
                         tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
+        # the folder is made once the model is built: a checkpoint that cannot be resumed
+        # leaves nothing behind
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
         remaining = config.total_timesteps - (model.num_timesteps if resume else 0)
 
         def save(path: Path) -> None:

@@ -63,6 +63,29 @@ def test_boids_train_refuses_a_bad_config_before_writing(tmp_path, capsys):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("entries, message", [
+    ({"notes.txt": "x"}, "is not a Stable-Baselines3 checkpoint (its zip lacks data, "
+                         "policy.pth)"),
+    ({"data": "{}", "policy.pth": "garbage"}, "cannot resume from"),
+])
+def test_a_checkpoint_that_cannot_resume_is_refused_before_writing(tmp_path, capsys, entries,
+                                                                   message):
+    """It once wrote config.json, then printed SB3's AssertionError traceback."""
+    import zipfile
+
+    junk = tmp_path / "junk.zip"
+    with zipfile.ZipFile(junk, "w") as archive:
+        for name, text in entries.items():
+            archive.writestr(name, text)
+    out = tmp_path / "t"
+    assert main(["train", "--resume", str(junk), "--timesteps", "100", "--copies", "1",
+                 "--group-sizes", "3", "--no-progress", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "junk.zip" in err, err
+    assert "Traceback" not in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("command", [["train"], ["run", "--robots", "3"],
                                      ["eval", "--seeds", "1"]])
 def test_out_that_is_a_file_is_refused_before_any_work(tmp_path, capsys, command):
