@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
-from boids_env.config import PATHS, PRESETS
+from boids_env.config import PATHS, PRESETS, EnvConfig
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
 from boids_env.realism import REALISMS
@@ -264,8 +265,6 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     preset = reynolds_preset(specs, args.preset)
     require("eval", *_policy_extras(specs), *(["ray"] if args.backend == "ray" else []),
             purpose="boids eval")
-    from pathlib import Path
-
     from boids_env.eval.folder import record_files
     from boids_env.eval.report import build_report
     from boids_env.eval.runner import PolicySpec, failures, run_suite
@@ -483,17 +482,13 @@ def _ros_metrics_parser(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_ros_metrics(args: argparse.Namespace) -> int:
     require("ros", purpose="boids ros metrics")
-    import json
-    from pathlib import Path
-
-    from boids_env.config import EnvConfig
     from boids_env.eval.ros.bags import read_live_bag
     from boids_env.eval.run import metrics_table
     from boids_env.files import atomic_path, write_json
 
     config = None
     if args.config is not None:
-        config = EnvConfig.from_dict(json.loads(Path(args.config).read_text())["env"])
+        config = _run_config(Path(args.config))
     recording = read_live_bag(args.bag, config)
     metrics = recording.metrics()
     print(f"bag {args.bag} · {recording.positions.shape[1]} robots · "
@@ -507,3 +502,22 @@ def _cmd_ros_metrics(args: argparse.Namespace) -> int:
             recording.to_parquet(tmp)
         print(f"wrote metrics.json, trajectory.parquet to {out}")
     return 0
+
+
+def _run_config(path: Path) -> EnvConfig:
+    """The env config of a run's ``config.json`` (``boids run`` / ``boids ros sim --out``);
+    every error names the file."""
+    import json
+
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+        raise ValueError(f"--config {path}: cannot read it as JSON ({reason})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("env"), dict):
+        raise ValueError(f"--config {path} is not a run's config.json (no \"env\" table; "
+                         f"boids ros sim --out and boids run write one)")
+    try:
+        return EnvConfig.from_dict(data["env"])
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"--config {path}: {exc}") from None

@@ -213,3 +213,18 @@ def test_whole_rollouts_rounds_up_to_what_ppo_runs():
     assert whole_rollouts(config, 36, 5000) == 256 * 36
     assert whole_rollouts(config, 36, 256 * 36 * 2) == 256 * 36 * 2
     assert whole_rollouts(TrainConfig(algorithm="sac", train_freq=1), 36, 50) == 72
+
+
+@pytest.mark.parametrize("content, reason", [
+    ("{not json", "cannot read it as JSON"),
+    ('{"policy": "reynolds"}', 'no "env" table'),
+    ('{"env": {"scenario": {"robots": 1}}}', "robots must be in"),
+    ('{"env": {"scenario": {"leader_sped": 1}}}', "leader_sped"),
+])
+def test_ros_metrics_config_errors_name_the_file(tmp_path, capsys, content, reason):
+    config = tmp_path / "my_config.json"
+    config.write_text(content)
+    assert main(["ros", "metrics", str(tmp_path / "run.bag"), "--config", str(config)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"--config {config}" in err and reason in err, err
+    assert len(err.splitlines()) == 1, err
