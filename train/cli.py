@@ -6,6 +6,7 @@ is imported when it runs, so ``boids run`` works without the train extra."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -142,11 +143,23 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _check_out(args: argparse.Namespace) -> None:
-    """``--out`` names a folder: an existing file there is refused before any work."""
+    """``--out`` names a folder: an existing file there, or a path that cannot become a folder
+    (a file on the way, a folder we may not write in) is refused before any work, not when
+    the outputs are written after it."""
     out = getattr(args, "out", None)
-    if isinstance(out, str) and Path(out).exists() and not Path(out).is_dir():
+    if not isinstance(out, str):
+        return
+    path = Path(out)
+    if path.exists() and not path.is_dir():
         raise NotADirectoryError(f"--out {out} is an existing file, not a folder; give a new "
                                  f"or existing folder")
+    existing = next(p for p in (path.absolute(), *path.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        raise NotADirectoryError(f"--out {out}: {existing} is a file, so no folder can be "
+                                 f"made under it; give a new or existing folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise PermissionError(f"--out {out}: no permission to write in {existing}; give a "
+                              f"folder you can write to")
 
 
 def error_text(exc: BaseException) -> str:

@@ -86,6 +86,23 @@ def test_a_checkpoint_that_cannot_resume_is_refused_before_writing(tmp_path, cap
     assert not out.exists()
 
 
+@pytest.mark.parametrize("command", [
+    ["train", "--timesteps", "100", "--copies", "1", "--group-sizes", "3", "--no-progress"],
+    ["run", "--robots", "3"], ["eval", "--seeds", "1", "--no-progress"]])
+def test_out_under_a_file_is_refused_before_any_work(tmp_path, capsys, command):
+    """``--out /etc/hostname/sub`` was found only when the outputs were written, after the
+    episode had run."""
+    target = tmp_path / "taken"
+    target.write_text("a user's file")
+    assert main([*command, "--out", str(target / "sub")]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert f"--out {target / 'sub'}: {target} is a file, so no folder can be made" in err, err
+    assert "Traceback" not in err and len(err.splitlines()) == 1
+    assert "V_sep" not in captured.out, "the episode ran before the refusal"
+    assert target.read_text() == "a user's file"
+
+
 @pytest.mark.parametrize("command", [["train"], ["run", "--robots", "3"],
                                      ["eval", "--seeds", "1"]])
 def test_out_that_is_a_file_is_refused_before_any_work(tmp_path, capsys, command):
