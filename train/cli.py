@@ -1,18 +1,20 @@
 """The ``boids`` command. It lives in the top layer (train -> eval -> policies -> boids_env) so
 no layer imports one above it: ``run``, ``eval`` and ``report`` come from
 :mod:`boids_env.eval.cli`, ``train`` is defined here. Argument parsing only; each command's code
-is imported when it runs, so ``boids run`` works without the train extra."""
+is imported when it runs, so ``boids run`` works without the train extra. This module imports
+only the standard library at its top: everything else is imported inside :func:`main`, which
+answers a Ctrl-C at any moment with one line and exit status 130."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-
-from boids_env.eval import cli as eval_cli
-from boids_env.extras import require
 
 
 def _train_parser(sub: argparse._SubParsersAction) -> None:
@@ -55,6 +57,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = TrainConfig.from_toml(resolve_recipe(args.config), **overrides)
     else:
         config = TrainConfig().replace(**overrides)
+    from boids_env.extras import require
+
     require("train", purpose="boids train")
     if config.device == "cuda":
         import torch
@@ -89,6 +93,8 @@ def _curves_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_curves(args: argparse.Namespace) -> int:
+    from boids_env.extras import require
+
     require("eval", purpose="boids curves")
     import pandas as pd
 
@@ -116,6 +122,8 @@ def _cmd_curves(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from boids_env.eval import cli as eval_cli
+
     parser = argparse.ArgumentParser(prog="boids", description="boids-env: leader-following "
                                      "boids flock (Akgun's ROS study) as a PettingZoo env")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -128,18 +136,46 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs the ``boids`` command; returns the exit status (2 for a user error, 130 when
     interrupted)."""
-    args = build_parser().parse_args(argv)
+    try:
+        with _deferred_ctrl_c() as interrupted:
+            args = build_parser().parse_args(argv)  # the first imports of numpy, scipy, pymunk
+    except KeyboardInterrupt:
+        interrupted = [True]
+    if interrupted:
+        print("\nboids: interrupted", file=sys.stderr)
+        return 130
     try:
         _check_out(args)
         return int(args.func(args))
     except KeyboardInterrupt:
         out = getattr(args, "out", None)
-        kept = f"; finished work is kept in {out}" if out else ""
+        # eval and train keep what they finished (a rerun resumes); a run writes all or nothing
+        kept = f"; finished work is kept in {out}" if out and args.command in (
+            "eval", "train") else ""
         print(f"\nboids {args.command}: interrupted{kept}", file=sys.stderr)
         return 130
     except (ValueError, TypeError, KeyError, OSError, ImportError) as exc:
         print(f"boids {args.command}: error: {error_text(exc)}", file=sys.stderr)
         return 2
+
+
+@contextlib.contextmanager
+def _deferred_ctrl_c() -> Iterator[list[bool]]:
+    """Holds a Ctrl-C back until the block ends, recording it in the yielded list. Around the
+    command's first imports: a KeyboardInterrupt raised inside a C extension's import comes
+    out as an ImportError (numpy's does), printed as a traceback; deferred, the command stops
+    cleanly a fraction of a second later. Where Ctrl-C is not Python's default (ignored, as in
+    a background job, or another handler) or off the main thread nothing changes."""
+    interrupted: list[bool] = []
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield interrupted
+        return
+    signal.signal(signal.SIGINT, lambda *_: interrupted.append(True))
+    try:
+        yield interrupted
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _check_out(args: argparse.Namespace) -> None:

@@ -228,3 +228,45 @@ def test_ros_metrics_config_errors_name_the_file(tmp_path, capsys, content, reas
     err = capsys.readouterr().err.strip()
     assert f"--config {config}" in err and reason in err, err
     assert len(err.splitlines()) == 1, err
+
+
+INTERRUPTED_IMPORT = """
+import builtins, os, signal, sys
+real = builtins.__import__
+
+def interrupted(name, *args, **kwargs):
+    if name == {module!r} and {module!r} not in sys.modules:
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C, arriving while this module loads
+    return real(name, *args, **kwargs)
+
+builtins.__import__ = interrupted
+sys.argv = ["boids", "run", "--robots", "3", "--out", {out!r}]
+# what the boids script that pip installs runs
+from boids_env.train.cli import main
+sys.exit(main())
+"""
+
+
+def _ctrl_c_as_in_a_terminal():
+    """SIGINT as a terminal gives it, whatever pytest inherited (ignored in a background
+    job, where Python installs no KeyboardInterrupt handler)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@pytest.mark.parametrize("module", ["numpy", "scipy.spatial", "boids_env.config", "pymunk"])
+def test_ctrl_c_while_the_command_starts_is_one_line_and_exit_130(tmp_path, module):
+    """The imports of the first second (numpy, scipy, pymunk) ran before main() could catch
+    a Ctrl-C, which printed a traceback (inside numpy's import, as an ImportError)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "o"
+    code = INTERRUPTED_IMPORT.format(module=module, out=str(out))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, check=False, preexec_fn=_ctrl_c_as_in_a_terminal)
+    err = proc.stderr.strip()
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert re.fullmatch(r"boids( run)?: interrupted", err), err
+    assert not out.exists()
