@@ -256,7 +256,8 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace an earlier evaluation of another suite or policies in --out "
                    "(only the files it wrote are removed)")
-    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (shown on a terminal only)")
     p.set_defaults(func=_cmd_eval)
 
 
@@ -287,9 +288,11 @@ def _cmd_eval(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 1
     before = {p.name for p in out.iterdir()}
+    print(f"{len(table)} episode rows; building the statistics, figures and report …",
+          flush=True)  # seconds of work: say so rather than sit silent
     report = build_report(out)
     record_files(out, sorted({p.name for p in out.iterdir()} - before))
-    print(f"{len(table)} episode rows; wrote results.parquet, results.csv and {report}")
+    print(f"wrote results.parquet, results.csv, {report} and {report.with_suffix('.html')}")
     if failed:
         print(f"boids eval: {len(failed)} episodes failed (listed in {out / 'errors.jsonl'} "
               f"and the report)", file=sys.stderr)
@@ -307,7 +310,9 @@ def _cmd_report(args: argparse.Namespace) -> int:
     require("eval", purpose="boids report")
     from boids_env.eval.report import build_report
 
-    print(f"wrote {build_report(args.dir)}")
+    print(f"building the statistics, figures and report of {args.dir} …", flush=True)
+    report = build_report(args.dir)
+    print(f"wrote {report} and {report.with_suffix('.html')}")
     return 0
 
 

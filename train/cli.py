@@ -41,7 +41,8 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--eval-every", type=int, default=None, help="timesteps (0: never)")
     p.add_argument("--checkpoint-every", type=int, default=None, help="timesteps (0: never)")
     p.add_argument("--resume", default=None, help="checkpoint zip to continue from")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (shown on a terminal only)")
     p.set_defaults(func=_cmd_train)
 
 
@@ -65,9 +66,12 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
         if not torch.cuda.is_available():
             raise ValueError("--device cuda but torch sees no GPU; use --device cpu or auto")
+    from boids_env.eval.progress import on_terminal
     from boids_env.train.run import train
 
-    model = train(config, args.out, resume=args.resume, progress_bar=not args.no_progress)
+    # SB3's bar on a terminal only: its redraws would fill a piped log
+    model = train(config, args.out, resume=args.resume,
+                  progress_bar=not args.no_progress and on_terminal())
     written = sorted(p.name + ("/" if p.is_dir() else "") for p in model.parent.iterdir())
     print(f"wrote {model}; {args.out} holds {', '.join(written)}")
     return 0

@@ -135,3 +135,32 @@ def test_cuda_without_a_gpu_is_refused_before_writing(tmp_path, capsys):
     assert main(["train", "--device", "cuda", "--out", str(out)]) == 2
     assert "torch sees no GPU" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_boids_train_shows_its_bar_on_a_terminal_only(tmp_path, monkeypatch):
+    """SB3's bar redraws filled a piped training log."""
+    import io
+    import sys
+
+    import boids_env.train.run as run
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    asked = []
+
+    def train(config, out, *, resume=None, progress_bar=False):
+        asked.append(progress_bar)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(run, "train", train)
+    argv = ["train", "--timesteps", "100", "--copies", "1", "--group-sizes", "3", "--out",
+            str(tmp_path / "t")]
+    for stream in (io.StringIO(), Terminal()):
+        monkeypatch.setattr(sys, "stderr", stream)
+        assert main(argv) == 2
+    assert asked == [False, True]
+    monkeypatch.setattr(sys, "stderr", Terminal())
+    assert main([*argv, "--no-progress"]) == 2
+    assert asked[-1] is False
