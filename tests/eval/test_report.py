@@ -153,6 +153,20 @@ def test_safety_table_figure_and_verdicts(folder):
     assert (walls["direction"] == "no significant difference").all(), "equal: no difference"
 
 
+def test_every_safety_panel_names_its_cases_and_marks_zero_bars(folder):
+    """The upper panels had no case names and zero bars were invisible: mostly empty."""
+    svg = (folder / "figures" / "safety.svg").read_text()
+    panels = svg.count("nearest-neighbour gap") + svg.count("time some robots touch") + \
+        svg.count("time at a wall") + svg.count("contact onsets (all pairs)")
+    assert panels == 4, panels
+    for case in ("leader_speed=0.5", "robots=19"):
+        assert svg.count(f">{case}<") == 4, f"{case} named under every panel"
+    # reynolds[paper] has no contact onsets in the fixture, the crowder has many: a zero bar
+    # marked in each of the 9 cases (the all-zero wall panel says "all zero" instead)
+    assert svg.count('id="zero_bar') == 9, svg.count('id="zero_bar')
+    assert "all zero" in svg
+
+
 def test_safety_verdict_logic_on_hand_made_numbers():
     base = {"policy": "a", "case": "c", "V_sep": [1, 1.1, 0.9, 1.0], "V_coh": [0] * 4,
             "V_align": [1, 1, 1, 1.01], "touching_fraction": [0.5, 0.52, 0.48, 0.5],
