@@ -126,10 +126,12 @@ def _cmd_curves(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from boids_env import __version__
     from boids_env.eval import cli as eval_cli
 
     parser = argparse.ArgumentParser(prog="boids", description="boids-env: leader-following "
                                      "boids flock (Akgun's ROS study) as a PettingZoo env")
+    parser.add_argument("--version", action="version", version=f"boids-env {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     eval_cli.add_commands(sub)
     _train_parser(sub)

@@ -270,3 +270,14 @@ def test_ctrl_c_while_the_command_starts_is_one_line_and_exit_130(tmp_path, modu
     assert proc.returncode == 130, (proc.returncode, err)
     assert re.fullmatch(r"boids( run)?: interrupted", err), err
     assert not out.exists()
+
+
+def test_boids_version_is_the_packages(capsys):
+    import tomllib
+    from pathlib import Path
+
+    project = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out.strip() == f"boids-env {project['project']['version']}"
