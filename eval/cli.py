@@ -394,9 +394,9 @@ def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
                        "node", description="Subscribes to every /robot_k/odom, builds the "
                        "env's observations, publishes every follower's /robot_k/cmd_vel and "
                        "(Reynolds) the rule-force markers on ~markers; Reynolds parameters are "
-                       "ROS parameters, changeable live with dynamic_reconfigure "
-                       "(rosrun dynamic_reconfigure dynparam set /reynolds_controller "
-                       "leader_weight 1.1).")
+                       "ROS parameters, changeable live through dynamic_reconfigure: "
+                       "boids ros reconfigure leader_weight=1.1 (or rqt_reconfigure on a full "
+                       "ROS install).")
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="Reynolds parameters of --policy reynolds (paper)")

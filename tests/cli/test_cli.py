@@ -281,3 +281,12 @@ def test_boids_version_is_the_packages(capsys):
         main(["--version"])
     assert exit_.value.code == 0
     assert capsys.readouterr().out.strip() == f"boids-env {project['project']['version']}"
+
+
+def test_ros_controller_help_recommends_what_works():
+    """It recommended Debian's dynparam, which the README says cannot find its package."""
+    text = build_parser()._subparsers._group_actions[0].choices["ros"]._subparsers \
+        ._group_actions[0].choices["controller"].format_help()
+    text = re.sub(r"\s+", " ", text)
+    assert "boids ros reconfigure leader_weight=1.1" in text, text
+    assert "dynparam" not in text
