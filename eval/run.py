@@ -8,6 +8,7 @@ complete.
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -42,7 +43,10 @@ def metrics_table(metrics: dict[str, Any]) -> str:
         value = metrics[key]
         if isinstance(value, float) and key.startswith("contacts_") and value.is_integer():
             value = int(value)  # a count
-        shown = f"{value:.4f}" if isinstance(value, float) else str(value)
+        if isinstance(value, float) and not math.isfinite(value):
+            shown = "n/a"  # does not apply: no scripted path to deviate from (external)
+        else:
+            shown = f"{value:.4f}" if isinstance(value, float) else str(value)
         lines.append(f"{key:<24} {shown:>10}  {meaning}")
     return "\n".join(lines)
 

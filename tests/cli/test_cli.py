@@ -290,3 +290,21 @@ def test_ros_controller_help_recommends_what_works():
     text = re.sub(r"\s+", " ", text)
     assert "boids ros reconfigure leader_weight=1.1" in text, text
     assert "dynparam" not in text
+
+
+def test_an_external_leader_has_no_path_deviation_and_metrics_json_stays_json(tmp_path,
+                                                                             capsys):
+    """It printed nan and wrote NaN, which is not JSON, into metrics.json."""
+    assert main(["run", "--path", "external", "--robots", "3", "--max-cycles", "10",
+                 "--out", str(tmp_path / "o")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines()
+                if x.startswith("leader_path_deviation"))
+    assert line.split()[1] == "n/a", line
+
+    def refuse(constant):
+        raise ValueError(f"{constant} is not JSON")
+
+    metrics = json.loads((tmp_path / "o" / "metrics.json").read_text(), parse_constant=refuse)
+    assert metrics["leader_path_deviation"] is None
+    assert metrics["leader_path_deviation_max"] is None
+    assert metrics["steps"] == 10 and metrics["min_distance"] > 0
