@@ -6,8 +6,8 @@ from __future__ import annotations
 import importlib.util
 
 EXTRAS: dict[str, tuple[str, ...]] = {
-    "render": ("pygame", "imageio"),
-    "video": ("pygame", "imageio", "imageio_ffmpeg"),
+    "render": ("pygame", "imageio", "tqdm"),
+    "video": ("pygame", "imageio", "imageio_ffmpeg", "tqdm"),
     "ros": ("rosbags",),
     "eval": ("statsmodels", "matplotlib", "tqdm", "tabulate", "markdown"),
     "train": ("stable_baselines3", "torch", "tensorboard", "tqdm", "rich"),

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import shutil
 import zipfile
@@ -55,8 +56,21 @@ def write_text(path: str | Path, text: str) -> Path:
 
 
 def write_json(path: str | Path, data: Any) -> Path:
-    """Writes ``data`` as indented JSON to ``path`` atomically; returns the path."""
-    return write_text(path, json.dumps(data, indent=2) + "\n")
+    """Writes ``data`` as indented JSON to ``path`` atomically; returns the path. A float that
+    is not finite (a metric that does not apply, e.g. the path deviation of an external
+    leader, is NaN) is written as ``null``: NaN is not JSON, and strict readers refuse it."""
+    return write_text(path, json.dumps(_finite(data), indent=2, allow_nan=False) + "\n")
+
+
+def _finite(data: Any) -> Any:
+    """``data`` with every non-finite float (NaN, ±inf) in its dicts and lists as None."""
+    if isinstance(data, float):
+        return data if math.isfinite(data) else None
+    if isinstance(data, dict):
+        return {key: _finite(value) for key, value in data.items()}
+    if isinstance(data, list | tuple):
+        return [_finite(value) for value in data]
+    return data
 
 
 def append_line(path: str | Path, line: str) -> None:

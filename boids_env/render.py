@@ -303,8 +303,15 @@ class Renderer:
         image = pygame.transform.scale(pygame.surfarray.make_surface(rgb), size)
         surface.blit(image, (int(top_left[0]), int(top_left[1])))
 
+    @property
+    def axis_caption(self) -> str:
+        """What the grid's numbers are, drawn in the top margin (the last tick, which once
+        carried the unit, is often outside the view)."""
+        return f"x, y in m (world frame); grid {grid_step(self.view_half, self.scale):g} m"
+
     def _draw_tick_labels(self, surface: Any) -> None:
-        """Grid values (m) in the margins: x along the bottom, y along the left."""
+        """Grid values (m) in the margins: x along the bottom, y along the left, and what
+        they are along the top."""
         font = self._fonts[16]
         xs, ys = self._ticks(0), self._ticks(1)
         for t in np.union1d(xs, ys):
@@ -315,11 +322,12 @@ class Renderer:
                 y = -1
             label = font.render(f"{t:g}", True, GRID_LABEL)
             if MARGIN <= x <= ARENA - MARGIN:
-                shown = font.render(f"{t:g} m", True, GRID_LABEL) if t == xs[-1] else label
-                surface.blit(shown, (int(x) - label.get_width() // 2, HEIGHT - MARGIN + 5))
+                surface.blit(label, (int(x) - label.get_width() // 2, HEIGHT - MARGIN + 5))
             if MARGIN <= y <= HEIGHT - MARGIN:
                 surface.blit(label, (MARGIN - label.get_width() - 4,
                                      int(y) - label.get_height() // 2))
+        caption = font.render(self.axis_caption, True, GRID_LABEL)
+        surface.blit(caption, (MARGIN, (MARGIN - caption.get_height()) // 2))
 
     def _update_trail(self, steps: int, leader: npt.NDArray[np.float64]) -> None:
         if steps < self._last_steps or steps == 0:

@@ -34,9 +34,10 @@ def clip_speed(v: FloatArray, limit: float) -> FloatArray:
 
 
 def as_velocities(value: Any, name: str, shape: tuple[int, ...]) -> FloatArray:
-    """``value`` as a float64 array of ``shape`` if it holds only finite real numbers (numpy
+    """``value`` as a new float64 array of ``shape`` if it holds only finite real numbers (numpy
     integer or float arrays, or sequences of ints and floats); bools, strings, complex numbers
-    and objects are refused with a ``ValueError`` naming ``name``."""
+    and objects are refused with a ``ValueError`` naming ``name``. Always a copy: a caller
+    who edits its array afterwards (an external leader's command) changes nothing here."""
     if isinstance(value, np.ndarray):
         ok = value.dtype.kind in "iuf"
     else:
@@ -46,7 +47,7 @@ def as_velocities(value: Any, name: str, shape: tuple[int, ...]) -> FloatArray:
     if not ok:
         raise ValueError(f"{name} must be {shape[-1]} real numbers (vx, vy) in m/s, got "
                          f"{value!r}")
-    arr = np.asarray(value, dtype=np.float64)
+    arr = np.array(value, dtype=np.float64, copy=True)
     if arr.shape != shape:
         raise ValueError(f"{name} must be {shape[-1]} numbers (vx, vy) in m/s, shape {shape}, "
                          f"got shape {arr.shape}: {value!r}")

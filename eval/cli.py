@@ -6,13 +6,16 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
-from boids_env.config import PATHS, PRESETS
+from boids_env.config import PATHS, PRESETS, EnvConfig
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
 from boids_env.world.realism import REALISMS
 
+MAX_FAST = 1000.0
+"""Largest ``--fast`` speed-up of the live window (times real time)."""
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
                "shipped PPO followers), learned-study (PPO on the study's reward alone), an "
                "SB3 model .zip, or module:object (a Policy instance, class or factory)")
@@ -107,9 +110,9 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
     _add_env_args(p, "leader path (square)", "seed (0)")
     p.add_argument("--leader-weight", type=float, default=None,
-                   help="Reynolds leader weight (preset's: 1.0)")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
-                   help="Reynolds parameters (paper)")
+                   help="Reynolds leader weight (preset's: 1.0); reynolds policies only")
+    p.add_argument("--preset", choices=sorted(PRESETS), default=None,
+                   help="Reynolds parameters of --policy reynolds (paper)")
     p.add_argument("--out", default="runs/latest", help="output folder (runs/latest)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace what an earlier boids run wrote in --out (listed in its "
@@ -126,8 +129,9 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--render", choices=("none", "human"), default="none",
                    help="human: live window (arrow keys drive a --path external leader, "
                    "1-6 and +/- tune the Reynolds parameters); nothing is written")
-    p.add_argument("--fast", type=float, default=4.0,
-                   help="speed-up of the live window's fast mode, key f (4)")
+    p.add_argument("--fast", type=float, default=None,
+                   help="speed-up of the live window's fast mode, key f, with --render human "
+                   f"(a number in (0, {MAX_FAST:g}]; 4)")
     p.set_defaults(func=_cmd_run)
 
 
@@ -163,6 +167,42 @@ def _policy_extras(specs: list[str]) -> list[str]:
     models = [str(MODELS.get(s, s)) for s in specs]
     needs = any(m.endswith(".zip") and not has_numpy_actor(m) for m in models)
     return ["train"] if needs else []
+
+
+def reynolds_preset(specs: list[str], preset: str | None,
+                    leader_weight: float | None = None) -> str:
+    """The preset for a bare ``reynolds`` policy (``paper`` unless ``--preset`` names one);
+    ``--preset`` and ``--leader-weight`` are refused where no policy would use them, rather
+    than silently ignored (``--preset`` sets only a bare ``reynolds``: ``reynolds@PRESET``
+    names its own)."""
+    from boids_env.policies.registry import split_preset
+
+    shown = " ".join(f"--policy {s}" for s in specs)
+    if leader_weight is not None and not any(split_preset(s)[0] == "reynolds" for s in specs):
+        raise ValueError(f"--leader-weight is a Reynolds parameter: it needs --policy reynolds "
+                         f"or reynolds@PRESET, got {shown}")
+    if preset is not None and "reynolds" not in specs:
+        raise ValueError(f"--preset {preset} sets the parameters of --policy reynolds only "
+                         f"(reynolds@PRESET names its own), got {shown}")
+    return preset or "paper"
+
+
+def _check_run_flags(args: argparse.Namespace) -> None:
+    """Flags of ``boids run`` that only one mode reads are refused in the other."""
+    if args.render == "human":
+        given = [flag for flag, on in (("--video", args.video), ("--bag", args.bag),
+                                       ("--mcap", args.mcap),
+                                       ("--bag-start", args.bag_start is not None),
+                                       ("--overwrite", args.overwrite)) if on]
+        if given:
+            raise ValueError(f"{', '.join(given)}: the live window (--render human) writes "
+                             f"nothing; drop {'them' if len(given) > 1 else 'it'} or drop "
+                             f"--render human")
+    elif args.fast is not None:
+        raise ValueError("--fast is the live window's fast mode: it needs --render human")
+    if args.fast is not None and not 0 < args.fast <= MAX_FAST:  # NaN fails too
+        raise ValueError(f"--fast must be a speed-up in (0, {MAX_FAST:g}] times real time, "
+                         f"got {args.fast:g}")
 
 
 def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
@@ -205,6 +245,8 @@ def _with_settings(fields: dict[str, Any], settings: list[tuple[str, Any]]) -> d
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    _check_run_flags(args)
+    preset = reynolds_preset([args.policy], args.preset, args.leader_weight)
     fields = _env_fields(args)
     needs = _policy_extras([args.policy])
     if args.render == "human":
@@ -214,8 +256,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from boids_env.render import NoDisplayError
 
         try:
-            _, metrics = run_live(args.policy, preset=args.preset, seed=args.seed,
-                                  fast_factor=args.fast, env_fields=fields,
+            _, metrics = run_live(args.policy, preset=preset, seed=args.seed,
+                                  fast_factor=args.fast or 4.0, env_fields=fields,
                                   leader_weight=args.leader_weight)
         except NoDisplayError as exc:
             print(f"boids run: error: {exc}", file=sys.stderr)
@@ -230,7 +272,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from boids_env.eval.run import run
 
     run(args.policy, out=args.out, overwrite=args.overwrite, seed=args.seed,
-        preset=args.preset, leader_weight=args.leader_weight, video=args.video, bag=args.bag,
+        preset=preset, leader_weight=args.leader_weight, video=args.video, bag=args.bag,
         mcap=args.mcap, bag_start=args.bag_start, env_fields=fields)
     return 0
 
@@ -245,7 +287,7 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                        "arguments, 130 when interrupted (finished episodes are kept).")
     p.add_argument("--policy", action="append", default=None,
                    help=POLICY_HELP + "; repeat to compare policies (first = baseline)")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
+    p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="preset of a bare 'reynolds' policy (paper)")
     p.add_argument("--suite", default="paper", help="paper (default), robustness, "
                    "generalisation (the learned policy's trained and unseen cases), or a TOML "
@@ -273,12 +315,14 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace an earlier evaluation of another suite or policies in --out "
                    "(only the files it wrote are removed)")
-    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (shown on a terminal only)")
     p.set_defaults(func=_cmd_eval)
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
     specs = args.policy or ["reynolds"]
+    preset = reynolds_preset(specs, args.preset)
     require("eval", *_policy_extras(specs), *(["ray"] if args.backend == "ray" else []),
             purpose="boids eval")
     from pathlib import Path
@@ -290,7 +334,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if args.episode_timeout < 0:
         raise ValueError(f"--episode-timeout must be >= 0 seconds (0: no limit), got "
                          f"{args.episode_timeout:g}")
-    policies = [PolicySpec.parse(spec, args.preset) for spec in specs]
+    policies = [PolicySpec.parse(spec, preset) for spec in specs]
     suite = load_suite(args.suite).with_seeds(args.seeds).with_blocks(args.blocks)
     if args.realism is not None:
         suite = suite.with_env(realism=args.realism)
@@ -303,8 +347,10 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         print(f"boids eval: all {len(failed)} episodes failed; see {out / 'errors.jsonl'}",
               file=sys.stderr)
         return 1
+    print(f"{len(table)} episode rows; building the statistics, figures and report …",
+          flush=True)  # seconds of work: say so rather than sit silent
     report = build_report(out)  # it records its files in the folder's manifest
-    print(f"{len(table)} episode rows; wrote results.parquet, results.csv and {report}")
+    print(f"wrote results.parquet, results.csv, {report} and {report.with_suffix('.html')}")
     if failed:
         print(f"boids eval: {len(failed)} episodes failed (listed in {out / 'errors.jsonl'} "
               f"and the report)", file=sys.stderr)
@@ -322,7 +368,9 @@ def _cmd_report(args: argparse.Namespace) -> int:
     require("eval", purpose="boids report")
     from boids_env.eval.report import build_report
 
-    print(f"wrote {build_report(args.dir)}")
+    print(f"building the statistics, figures and report of {args.dir} …", flush=True)
+    report = build_report(args.dir)
+    print(f"wrote {report} and {report.with_suffix('.html')}")
     return 0
 
 
@@ -422,14 +470,14 @@ def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
                        "node", description="Subscribes to every /robot_k/odom, builds the "
                        "env's observations, publishes every follower's /robot_k/cmd_vel and "
                        "(Reynolds) the rule-force markers on ~markers; Reynolds parameters are "
-                       "ROS parameters, changeable live with dynamic_reconfigure "
-                       "(rosrun dynamic_reconfigure dynparam set /reynolds_controller "
-                       "leader_weight 1.1).")
+                       "ROS parameters, changeable live through dynamic_reconfigure: "
+                       "boids ros reconfigure leader_weight=1.1 (or rqt_reconfigure on a full "
+                       "ROS install).")
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
-    p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
-                   help="Reynolds parameters (paper)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default=None,
+                   help="Reynolds parameters of --policy reynolds (paper)")
     p.add_argument("--leader-weight", type=float, default=None,
-                   help="Reynolds leader weight (preset's: 1.0)")
+                   help="Reynolds leader weight (preset's: 1.0); reynolds policies only")
     p.add_argument("--robots", type=int, default=None,
                    help="group size of the odometry source (default: boids ros sim's, read "
                    "from the /boids/env_config parameter)")
@@ -451,6 +499,7 @@ def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
 def _cmd_ros_controller(args: argparse.Namespace) -> int:
     import sys
 
+    preset = reynolds_preset([args.policy], args.preset, args.leader_weight)
     require(*_policy_extras([args.policy]), purpose=f"boids ros controller --policy "
             f"{args.policy}")
     from boids_env.eval.ros.controller import ControllerOptions, run_controller
@@ -464,7 +513,7 @@ def _cmd_ros_controller(args: argparse.Namespace) -> int:
                              "config is used)")
         fields["arena_half_size"] = args.arena_half_size
     options = ControllerOptions(
-        policy=args.policy, preset=args.preset, leader_weight=args.leader_weight,
+        policy=args.policy, preset=preset, leader_weight=args.leader_weight,
         env_fields=fields, sync=args.sync, seed=args.seed, max_ticks=args.max_ticks,
         markers=not args.no_markers, quiet=args.quiet)
     run_controller(options, [sys.argv[0], *_ros_args(args.ros_args)])
@@ -514,17 +563,13 @@ def _ros_metrics_parser(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_ros_metrics(args: argparse.Namespace) -> int:
     require("ros", purpose="boids ros metrics")
-    import json
-    from pathlib import Path
-
-    from boids_env.config import EnvConfig
     from boids_env.eval.ros.bags import read_live_bag
     from boids_env.eval.run import metrics_table
     from boids_env.files import atomic_path, write_json
 
     config = None
     if args.config is not None:
-        config = EnvConfig.from_dict(json.loads(Path(args.config).read_text())["env"])
+        config = _run_config(Path(args.config))
     recording = read_live_bag(args.bag, config)
     metrics = recording.metrics()
     print(f"bag {args.bag} · {recording.positions.shape[1]} robots · "
@@ -538,3 +583,22 @@ def _cmd_ros_metrics(args: argparse.Namespace) -> int:
             recording.to_parquet(tmp)
         print(f"wrote metrics.json, trajectory.parquet to {out}")
     return 0
+
+
+def _run_config(path: Path) -> EnvConfig:
+    """The env config of a run's ``config.json`` (``boids run`` / ``boids ros sim --out``);
+    every error names the file."""
+    import json
+
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+        raise ValueError(f"--config {path}: cannot read it as JSON ({reason})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("env"), dict):
+        raise ValueError(f"--config {path} is not a run's config.json (no \"env\" table; "
+                         f"boids ros sim --out and boids run write one)")
+    try:
+        return EnvConfig.from_dict(data["env"])
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"--config {path}: {exc}") from None

@@ -279,10 +279,11 @@ def safety_bars(table: pd.DataFrame, path: Path) -> Path:
     table = with_contacts(table)
     panels = [m for m in SAFETY_PANELS if m in table]
     width = max(6.5, 0.85 * table["case"].nunique() + 2)
-    fig, axes = plt.subplots(len(panels), 1, figsize=(width, 2.7 * len(panels)),
-                             squeeze=False, sharex=True)
+    # every panel names its cases (a panel of mostly zero bars read as empty without them)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(width, 3.4 * len(panels)),
+                             squeeze=False)
     for ax, metric in zip(axes[:, 0], panels, strict=True):
-        _policy_panel(ax, table, metric, ticks=ax is axes[-1, 0])
+        _policy_panel(ax, table, metric, ticks=True)
     axes[0, 0].legend(fontsize=8, frameon=False)
     fig.suptitle(f"Safety per case (the study does not measure it)\n{CI_NOTE}", fontsize=10)
     fig.tight_layout()
@@ -294,6 +295,7 @@ def _policy_panel(ax: plt.Axes, table: pd.DataFrame, metric: str, ticks: bool = 
     policies = list(dict.fromkeys(table["policy"]))
     width = 0.8 / len(policies)
     top = 0.0
+    zeros = []
     for pi, policy in enumerate(policies):
         sub = table[table["policy"] == policy]
         for ci, case in enumerate(cases):
@@ -301,6 +303,12 @@ def _policy_panel(ax: plt.Axes, table: pd.DataFrame, metric: str, ticks: bool = 
             x = ci + (pi - (len(policies) - 1) / 2) * width
             top = max(top, _bar(ax, x, values, width, COLORS[pi % 10],
                                 policy if ci == 0 else None))
+            if len(values) and np.all(np.asarray(values, dtype=float) == 0):
+                zeros.append((x, pi))
+    if top > 0:  # a zero bar is invisible: mark it, so it reads as measured zero, not missing
+        for x, pi in zeros:
+            ax.text(x, 0, "0", ha="center", va="bottom", fontsize=7, color=COLORS[pi % 10],
+                    gid="zero_bar")
     ax.set_xticks(range(len(cases)), cases if ticks else [""] * len(cases), rotation=30,
                   ha="right", fontsize=8)
     if ticks:

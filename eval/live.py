@@ -135,11 +135,13 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
     parameters) and the last episode's metrics, the safety metrics included (with the
     leader's final position). Raises :class:`~boids_env.render.NoDisplayError` where there
     is no display."""
+    from boids_env.checks import number
     from boids_env.environment import BoidsEnv
     from boids_env.eval.episode import env_fields_for
     from boids_env.policies.registry import load_policy
     from boids_env.recording import Recorder
 
+    number("fast_factor", fast_factor, 0.0, 1000.0, lo_open=True, unit="times real time")
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
     policy = load_policy(policy_spec, preset=preset, **overrides)
     fields = dict(env_fields or {})

@@ -109,6 +109,16 @@ def signed(value: float) -> str:
     return "0" if abs(value) < 5e-13 else f"{value:+.3g}"
 
 
+def p_text(value: float) -> str:
+    """A p-value to 3 significant digits; below 0.001 as ``< 0.001`` (statsmodels' Tukey test
+    returns an exact 0 for large differences, which is no probability to print)."""
+    return "< 0.001" if value < 0.001 else f"{value:.3g}"
+
+
+def _is_p(column: str) -> bool:
+    return column in ("p", "p_adj") or column.startswith("p_") or column.endswith("_p")
+
+
 def _fmt(mean: float, std: float) -> str:
     return f"{num(mean)} ± {num(std)}"
 
@@ -236,7 +246,7 @@ def _md_table(df: pd.DataFrame) -> str:
     for col in shown.columns:
         if pd.api.types.is_float_dtype(shown[col]):
             shown[col] = [("—" if not np.isfinite(v) else
-                           (f"{v:.3g}" if col.startswith("p") else num(v, 4)))
+                           (p_text(v) if _is_p(col) else num(v, 4)))
                           for v in shown[col]]
         else:
             shown[col] = [escape(v) for v in shown[col]]

@@ -8,6 +8,7 @@ complete.
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -44,7 +45,10 @@ def metrics_table(metrics: dict[str, Any]) -> str:
         value = metrics[key]
         if isinstance(value, float) and key.startswith("contacts_") and value.is_integer():
             value = int(value)  # a count
-        shown = f"{value:.4f}" if isinstance(value, float) else str(value)
+        if isinstance(value, float) and not math.isfinite(value):
+            shown = "n/a"  # does not apply: no scripted path to deviate from (external)
+        else:
+            shown = f"{value:.4f}" if isinstance(value, float) else str(value)
         lines.append(f"{key:<24} {shown:>10}  {meaning}")
     return "\n".join(lines)
 
@@ -80,9 +84,12 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         from boids_env.eval.video import check_format
 
         check_format(fmt)
+    policy, preset = split_preset(policy, preset)
+    if leader_weight is not None and policy != "reynolds":
+        raise ValueError(f"leader_weight is a Reynolds parameter: it needs policy 'reynolds' "
+                         f"or 'reynolds@PRESET', got {policy!r}")
     folder = RunFolder(out, overwrite=overwrite) if out is not None else None  # refuse early
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
-    policy, preset = split_preset(policy, preset)
     pol = load_policy(policy, preset=preset, **overrides)
     params = getattr(pol, "params", None)
     env = BoidsEnv(**env_fields_for(pol, env_fields))

@@ -36,6 +36,7 @@ import pandas as pd
 
 from boids_env.eval import folder
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT, guarded, run_isolated
+from boids_env.eval.progress import bar as progress_bar
 from boids_env.eval.suites import Case, Suite
 from boids_env.files import append_line, atomic_path, write_json
 
@@ -280,7 +281,7 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
         keep_trajectories: write every episode's trajectory to
             ``out/trajectories/POLICY__CASE__seedN.parquet`` (otherwise only the first seed's
             of each case).
-        progress: show a progress bar (tqdm).
+        progress: show a progress bar (tqdm), on a terminal.
         runner: the function running one task (tests inject failures with it); it must be
             picklable (a module-level function) unless ``backend="inline"``.
         episode_timeout: seconds an episode may run before its worker is killed and the
@@ -317,7 +318,8 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
     (out / ERRORS).unlink(missing_ok=True)
     errors: list[dict[str, Any]] = []
     cases_of = _cases_of(tasks, suite)
-    bar = _progress(len(tasks), len(tasks) - len(todo), progress)
+    bar = progress_bar(len(tasks), desc="episodes", unit="ep", initial=len(tasks) - len(todo),
+                       enabled=progress)
 
     def record(task: Task, ok: bool, row: dict[str, Any]) -> None:
         line = _episode_line(task, row) if ok else None
@@ -528,15 +530,3 @@ def suite_to_dict(suite: Suite, policies: Sequence[PolicySpec]) -> dict[str, Any
             "cases": [{"name": c.name, "group": c.group, "factor": c.factor, "level": c.level,
                        "env": c.env, "policy": c.policy} for c in suite.cases]}
 
-
-def _progress(total: int, initial: int, enabled: bool) -> Any:
-    try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover - tqdm is in the eval extra
-        enabled = False
-    if not enabled:
-        class _Null:
-            def update(self, n: int) -> None: ...
-            def close(self) -> None: ...
-        return _Null()
-    return tqdm(total=total, initial=initial, desc="episodes", unit="ep")

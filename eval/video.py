@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env import metrics, style
+from boids_env.eval.progress import iterate
 from boids_env.files import atomic_path
 from boids_env.recording import Recording
 
@@ -115,7 +116,7 @@ def write_video(recording: Recording, path: str | Path, *, frame_every: int = FR
         speed: playback speed, times real time.
         view: ``follow`` (a camera on the flock, robots at true size, the arena as a map
             beside it) or ``arena`` (the whole arena).
-        progress: show a progress bar (tqdm) while encoding.
+        progress: show a progress bar (tqdm) while encoding, on a terminal.
     """
     path = Path(path)
     fmt = path.suffix.lstrip(".").lower()
@@ -125,8 +126,8 @@ def write_video(recording: Recording, path: str | Path, *, frame_every: int = FR
     fps = speed / (recording.config.world.dt * frame_every)
     total = frame_count(recording, frame_every)
     start = time.perf_counter()
-    stream = _progress(frames(recording, frame_every=frame_every, view=view), total,
-                       f"encoding {path.name}", progress)
+    stream = iterate(frames(recording, frame_every=frame_every, view=view), total,
+                     desc=f"encoding {path.name}", unit="frame", enabled=progress)
     with atomic_path(path) as tmp:
         if fmt == "gif":
             _write_gif(stream, tmp, fps)
@@ -179,14 +180,3 @@ def _write_mp4(stream: Iterator[npt.NDArray[np.uint8]], path: Path, fps: float) 
             writer.append_data(image)
     finally:
         writer.close()
-
-
-def _progress(stream: Iterator[Any], total: int, label: str, enabled: bool
-              ) -> Iterator[Any]:
-    if not enabled:
-        return stream
-    try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover - tqdm is in the eval extra
-        return stream
-    return iter(tqdm(stream, total=total, desc=label, unit="frame", leave=False))

@@ -103,9 +103,7 @@ def check_policy_spec(spec: str, preset: str = "paper") -> None:
     if spec.endswith(".zip"):
         if not Path(spec).is_file():
             raise FileNotFoundError(f"policy model file not found: {spec}")
-        from boids_env.policies.sb3_policy import read_meta
-
-        read_meta(spec)
+        _check_model_zip(Path(spec))
         return
     if ":" in spec:
         obj = _import_object(spec)
@@ -115,6 +113,33 @@ def check_policy_spec(spec: str, preset: str = "paper") -> None:
         return
     raise ValueError(f"policy must be one of {BUILTIN}, reynolds@PRESET, a .zip SB3 model or "
                      f"module:object, got {spec!r}")
+
+
+SB3_ENTRIES = ("data", "policy.pth")
+"""Entries every zip that Stable-Baselines3's ``model.save`` writes holds."""
+
+
+def _check_model_zip(path: Path) -> None:
+    """Refuses a zip that cannot act as a policy: not a zip or unreadable metadata; a stored
+    numpy actor is loaded whole (numpy only, milliseconds); a zip without one must at least
+    hold SB3's model entries (loading it needs torch, which this check does not import)."""
+    import zipfile
+
+    from boids_env.policies.mlp_actor import ACTOR_ENTRY
+    from boids_env.policies.sb3_policy import load_model_policy, read_meta
+
+    read_meta(path)  # not a zip, or a bad boids.json: refused by name
+    with zipfile.ZipFile(path) as archive:
+        names = set(archive.namelist())
+    if ACTOR_ENTRY in names:
+        load_model_policy(path)
+        return
+    missing = [name for name in SB3_ENTRIES if name not in names]
+    if missing:
+        raise ValueError(f"policy model {path} is not a Stable-Baselines3 model: its zip holds "
+                         f"neither {ACTOR_ENTRY} (saved by boids train) nor SB3's "
+                         f"{' and '.join(SB3_ENTRIES)} (lacks {', '.join(missing)}); give a "
+                         f"zip saved by boids train or by an SB3 model's save()")
 
 
 def _import_object(spec: str) -> Any:

@@ -1,17 +1,20 @@
 """The ``boids`` command. It lives in the top layer (train -> eval -> policies -> boids_env) so
 no layer imports one above it: ``run``, ``eval`` and ``report`` come from
 :mod:`boids_env.eval.cli`, ``train`` is defined here. Argument parsing only; each command's code
-is imported when it runs, so ``boids run`` works without the train extra."""
+is imported when it runs, so ``boids run`` works without the train extra. This module imports
+only the standard library at its top: everything else is imported inside :func:`main`, which
+answers a Ctrl-C at any moment with one line and exit status 130."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-
-from boids_env.eval import cli as eval_cli
-from boids_env.extras import require
 
 
 def _train_parser(sub: argparse._SubParsersAction) -> None:
@@ -44,7 +47,8 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", default=None, help="checkpoint zip to continue from, up to "
                    "--timesteps in all (more than it has); goes on in the --out of the "
                    "same config")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (shown on a terminal only)")
     p.set_defaults(func=_cmd_train)
 
 
@@ -60,16 +64,20 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = TrainConfig.from_toml(resolve_recipe(args.config), **overrides)
     else:
         config = TrainConfig().replace(**overrides)
+    from boids_env.extras import require
+
     require("train", purpose="boids train")
     if config.device == "cuda":
         import torch
 
         if not torch.cuda.is_available():
             raise ValueError("--device cuda but torch sees no GPU; use --device cpu or auto")
+    from boids_env.eval.progress import on_terminal
     from boids_env.train.run import train
 
+    # SB3's bar on a terminal only: its redraws would fill a piped log
     model = train(config, args.out, resume=args.resume, overwrite=args.overwrite,
-                  progress_bar=not args.no_progress)
+                  progress_bar=not args.no_progress and on_terminal())
     written = sorted(p.name + ("/" if p.is_dir() else "") for p in model.parent.iterdir())
     print(f"wrote {model}; {args.out} holds {', '.join(written)}")
     return 0
@@ -95,6 +103,8 @@ def _curves_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_curves(args: argparse.Namespace) -> int:
+    from boids_env.extras import require
+
     require("eval", purpose="boids curves")
     import pandas as pd
 
@@ -122,8 +132,12 @@ def _cmd_curves(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from boids_env import __version__
+    from boids_env.eval import cli as eval_cli
+
     parser = argparse.ArgumentParser(prog="boids", description="boids-env: leader-following "
                                      "boids flock (Akgun's ROS study) as a PettingZoo env")
+    parser.add_argument("--version", action="version", version=f"boids-env {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     eval_cli.add_commands(sub)
     _train_parser(sub)
@@ -134,13 +148,22 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs the ``boids`` command; returns the exit status (2 for a user error, 130 when
     interrupted)."""
-    args = build_parser().parse_args(argv)
+    try:
+        with _deferred_ctrl_c() as interrupted:
+            args = build_parser().parse_args(argv)  # the first imports of numpy, scipy, pymunk
+    except KeyboardInterrupt:
+        interrupted = [True]
+    if interrupted:
+        print("\nboids: interrupted", file=sys.stderr)
+        return 130
     try:
         _check_out(args)
         return int(args.func(args))
     except KeyboardInterrupt:
         out = getattr(args, "out", None)
-        kept = f"; finished work is kept in {out}" if out else ""
+        # eval and train keep what they finished (a rerun resumes); a run writes all or nothing
+        kept = f"; finished work is kept in {out}" if out and args.command in (
+            "eval", "train") else ""
         print(f"\nboids {args.command}: interrupted{kept}", file=sys.stderr)
         return 130
     except (ValueError, TypeError, KeyError, OSError, ImportError) as exc:
@@ -148,12 +171,43 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
 
 
+@contextlib.contextmanager
+def _deferred_ctrl_c() -> Iterator[list[bool]]:
+    """Holds a Ctrl-C back until the block ends, recording it in the yielded list. Around the
+    command's first imports: a KeyboardInterrupt raised inside a C extension's import comes
+    out as an ImportError (numpy's does), printed as a traceback; deferred, the command stops
+    cleanly a fraction of a second later. Where Ctrl-C is not Python's default (ignored, as in
+    a background job, or another handler) or off the main thread nothing changes."""
+    interrupted: list[bool] = []
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield interrupted
+        return
+    signal.signal(signal.SIGINT, lambda *_: interrupted.append(True))
+    try:
+        yield interrupted
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def _check_out(args: argparse.Namespace) -> None:
-    """``--out`` names a folder: an existing file there is refused before any work."""
+    """``--out`` names a folder: an existing file there, or a path that cannot become a folder
+    (a file on the way, a folder we may not write in) is refused before any work, not when
+    the outputs are written after it."""
     out = getattr(args, "out", None)
-    if isinstance(out, str) and Path(out).exists() and not Path(out).is_dir():
+    if not isinstance(out, str):
+        return
+    path = Path(out)
+    if path.exists() and not path.is_dir():
         raise NotADirectoryError(f"--out {out} is an existing file, not a folder; give a new "
                                  f"or existing folder")
+    existing = next(p for p in (path.absolute(), *path.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        raise NotADirectoryError(f"--out {out}: {existing} is a file, so no folder can be "
+                                 f"made under it; give a new or existing folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise PermissionError(f"--out {out}: no permission to write in {existing}; give a "
+                              f"folder you can write to")
 
 
 def error_text(exc: BaseException) -> str:

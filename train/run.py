@@ -26,6 +26,7 @@ from stable_baselines3.common.vec_env import VecMonitor
 
 from boids_env.eval import folder
 from boids_env.files import atomic_path, read_zip_entry, write_json
+from boids_env.policies.registry import SB3_ENTRIES
 from boids_env.policies.sb3_policy import algorithm_class, read_meta, write_meta
 from boids_env.train.callbacks import Checkpoints, FlockEvalCallback, TrainingMetricsCallback
 from boids_env.train.config import TrainConfig
@@ -115,13 +116,20 @@ def check_resume(config: TrainConfig, out: Path, resume: str | Path | None,
         return
     if not Path(resume).is_file():
         raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
+    saved = read_meta(resume).get("algorithm", config.algorithm)  # refuses a non-zip by name
+    with zipfile.ZipFile(resume) as archive:
+        names = set(archive.namelist())
+    missing = [name for name in SB3_ENTRIES if name not in names]
+    if missing:
+        raise ValueError(f"--resume {resume} is not a Stable-Baselines3 checkpoint (its zip "
+                         f"lacks {', '.join(missing)}); give a model.zip or "
+                         f"checkpoints/model_<steps>_steps.zip of boids train")
     done = checkpoint_timesteps(resume)
     if config.total_timesteps <= done:
         raise ValueError(f"--timesteps (total_timesteps) must exceed the {done:,} follower-steps "
                          f"checkpoint {resume} has already trained, got "
                          f"{config.total_timesteps:,}: a resume trains on until the total, so "
                          f"this one would train nothing")
-    saved = read_meta(resume).get("algorithm", config.algorithm)
     if saved != config.algorithm:
         raise ValueError(f"checkpoint {resume} was trained with {saved}, the config says "
                          f"algorithm={config.algorithm!r}")
@@ -164,16 +172,19 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     device = config.resolved_device()
     if device == "cuda" and not torch.cuda.is_available():
         raise ValueError("device='cuda' but torch sees no GPU; use device='cpu' or 'auto'")
-    folder.claim(out, identity(config), overwrite=overwrite, owner=folder.TRAIN,
-                 resume=resume is not None)
     torch.set_num_threads(config.resolved_threads())
-    write_json(out / "config.json", config.to_dict())
     meta = model_meta(config)
     venv = VecMonitor(make_vec_env(config))
     cls = algorithm_class(config.algorithm)
     try:
         if resume is not None:
-            model = cls.load(resume, env=venv, device=device, tensorboard_log=str(out / "tb"))
+            try:
+                model = cls.load(resume, env=venv, device=device,
+                                 tensorboard_log=str(out / "tb"))
+            except Exception as exc:  # SB3's load of a foreign file raises anything (asserts)
+                first = (str(exc).strip().splitlines() or [""])[0]  # torch's run on for lines
+                raise ValueError(f"cannot resume from {resume}: {type(exc).__name__}: {first}"
+                                 ) from None
             model.set_random_seed(config.seed)
             if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
                 with torch.no_grad():
@@ -181,6 +192,11 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
         else:
             model = cls("MlpPolicy", venv, device=device, verbose=verbose,
                         tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
+        # the folder is claimed once the model is built: a checkpoint that cannot be resumed
+        # leaves nothing behind
+        folder.claim(out, identity(config), overwrite=overwrite, owner=folder.TRAIN,
+                     resume=resume is not None)
+        write_json(out / "config.json", config.to_dict())
         remaining = config.total_timesteps - (model.num_timesteps if resume else 0)
 
         def save(path: Path) -> None:

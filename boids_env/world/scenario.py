@@ -8,6 +8,7 @@ turned and placed at the leader's start; the episode's length follows from the p
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Any
 
@@ -117,31 +118,38 @@ class ScenarioConfig:
         _set(self, "init_jitter", _number("init_jitter", self.init_jitter, 0.0, 0.2, unit="m"))
         _set(self, "layout_spacing", _number("layout_spacing", self.layout_spacing, 0.1, 10,
                                              unit="m"))
-        start = _waypoints((self.start,), "start") if _pair(self.start) else None
-        if start is None:
+        if not (_pair_sequence(self.start) and len(self.start) == 2):
             raise ValueError(f"start must be an (x, y) position in metres, got {self.start!r}")
-        _set(self, "start", start[0])
+        _set(self, "start", _waypoints((self.start,), "start")[0])
         if self.start_heading is not None:
             _set(self, "start_heading", _number("start_heading", self.start_heading, -360, 360,
                                                 unit="degrees"))
 
 
-def _pair(value: Any) -> bool:
-    return isinstance(value, tuple | list) and len(value) == 2
-
-
 def _waypoints(value: Any, name: str = "waypoints") -> tuple[tuple[float, float], ...]:
-    try:
-        points = tuple((float(p[0]), float(p[1])) for p in value)
-        if any(len(p) != 2 for p in value):
-            raise ValueError
-    except (TypeError, ValueError, IndexError):
-        raise ValueError(f"{name} must be a sequence of (x, y) pairs in metres, "
-                         f"got {value!r}") from None
+    """``value`` as ((x, y), ...) if it is a sequence of pairs of real numbers; a string is not
+    a pair (``"34"`` is not (3, 4)) and strings, bools and complex numbers are not coordinates
+    (``float()`` would take them)."""
+    message = f"{name} must be a sequence of (x, y) pairs of numbers in metres, got {value!r}"
+    if not _pair_sequence(value):
+        raise ValueError(message)
+    points = []
+    for point in value:
+        if not _pair_sequence(point) or len(point) != 2 or not all(_real(c) for c in point):
+            raise ValueError(message)
+        points.append((float(point[0]), float(point[1])))
     if not all(math.isfinite(c) for p in points for c in p):
         raise ValueError(f"{name} must be finite, got {value!r}")
-    return points
+    return tuple(points)
 
+
+def _pair_sequence(value: Any) -> bool:
+    """A list, tuple or numpy array (not a string, bytes or mapping, which also iterate)."""
+    return isinstance(value, list | tuple) or (isinstance(value, np.ndarray) and value.ndim >= 1)
+
+
+def _real(value: Any) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
 
 
 def scene_matrix(scenario: ScenarioConfig) -> np.ndarray:

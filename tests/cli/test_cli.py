@@ -89,6 +89,75 @@ def test_ctrl_c_is_a_short_message_and_exit_130(tmp_path, capsys, monkeypatch):
     assert len(err) == 1 and "interrupted" in err[0] and str(tmp_path) in err[0]
 
 
+@pytest.fixture
+def nothing_starts(monkeypatch):
+    """The episode, the live window, the evaluation and the ROS node raise if reached: a flag
+    refused too late would start them."""
+    import boids_env.eval.live as live
+    import boids_env.eval.ros.controller as controller
+    import boids_env.eval.run as run
+    import boids_env.eval.runner as runner
+
+    def started(*args, **kwargs):
+        raise AssertionError("the command started its work before refusing the flag")
+
+    for module, name in ((run, "run"), (live, "run_live"), (runner, "run_suite"),
+                         (controller, "run_controller")):
+        monkeypatch.setattr(module, name, started)
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["run", "--policy", "random", "--leader-weight", "1.1"], "--leader-weight"),
+    (["run", "--policy", "learned", "--leader-weight", "1.1"], "--leader-weight"),
+    (["run", "--policy", "learned", "--preset", "boids_ros"], "--preset boids_ros"),
+    (["run", "--policy", "reynolds@boids_ros", "--preset", "paper"], "--preset paper"),
+    (["run", "--render", "human", "--policy", "random", "--leader-weight", "1"],
+     "--leader-weight"),
+    (["eval", "--policy", "learned", "--policy", "random", "--preset", "boids_ros"],
+     "--preset boids_ros"),
+    (["ros", "controller", "--policy", "learned", "--leader-weight", "1.1"], "--leader-weight"),
+    (["ros", "controller", "--policy", "random", "--preset", "boids_ros"], "--preset"),
+])
+def test_reynolds_flags_are_refused_for_other_policies(argv, named, tmp_path, capsys,
+                                                        nothing_starts):
+    out = ["--out", str(tmp_path / "o")] if argv[0] != "ros" else []
+    assert main([*argv, *out]) == 2
+    err = capsys.readouterr().err
+    assert named in err and "reynolds" in err, err
+    assert "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["--render", "human", "--fast", "0"], r"--fast must be a speed-up in \(0, 1000\]"),
+    (["--render", "human", "--fast", "-1"], r"--fast must be .* got -1"),
+    (["--render", "human", "--fast", "nan"], r"--fast must be .* got nan"),
+    (["--fast", "2"], "--fast .* needs --render human"),
+    (["--render", "human", "--video"], r"--video: the live window \(--render human\) writes"),
+    (["--render", "human", "--bag", "--overwrite"], "--bag, --overwrite: the live window"),
+])
+def test_live_window_flags_are_checked(argv, named, tmp_path, capsys, nothing_starts):
+    assert main(["run", *argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(named, err), err
+    assert not (tmp_path / "o").exists()
+
+
+def test_run_live_refuses_a_bad_fast_factor_before_opening_a_window():
+    from boids_env.eval.live import run_live
+
+    with pytest.raises(ValueError, match=r"fast_factor must be in \(0.0, 1000.0\]"):
+        run_live(fast_factor=float("nan"))
+
+
+def test_run_refuses_a_leader_weight_for_another_policy(tmp_path):
+    from boids_env.eval.run import run
+
+    with pytest.raises(ValueError, match="leader_weight is a Reynolds parameter"):
+        run("random", leader_weight=1.1, out=tmp_path / "o")
+    assert not (tmp_path / "o").exists()
+
+
 def test_train_config_accepts_a_shipped_recipe_name():
     from boids_env.train.config import TrainConfig, resolve_recipe
 
@@ -144,3 +213,98 @@ def test_whole_rollouts_rounds_up_to_what_ppo_runs():
     assert whole_rollouts(config, 36, 5000) == 256 * 36
     assert whole_rollouts(config, 36, 256 * 36 * 2) == 256 * 36 * 2
     assert whole_rollouts(TrainConfig(algorithm="sac", train_freq=1), 36, 50) == 72
+
+
+@pytest.mark.parametrize("content, reason", [
+    ("{not json", "cannot read it as JSON"),
+    ('{"policy": "reynolds"}', 'no "env" table'),
+    ('{"env": {"scenario": {"robots": 1}}}', "robots must be in"),
+    ('{"env": {"scenario": {"leader_sped": 1}}}', "leader_sped"),
+])
+def test_ros_metrics_config_errors_name_the_file(tmp_path, capsys, content, reason):
+    config = tmp_path / "my_config.json"
+    config.write_text(content)
+    assert main(["ros", "metrics", str(tmp_path / "run.bag"), "--config", str(config)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"--config {config}" in err and reason in err, err
+    assert len(err.splitlines()) == 1, err
+
+
+INTERRUPTED_IMPORT = """
+import builtins, os, signal, sys
+real = builtins.__import__
+
+def interrupted(name, *args, **kwargs):
+    if name == {module!r} and {module!r} not in sys.modules:
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C, arriving while this module loads
+    return real(name, *args, **kwargs)
+
+builtins.__import__ = interrupted
+sys.argv = ["boids", "run", "--robots", "3", "--out", {out!r}]
+# what the boids script that pip installs runs
+from boids_env.train.cli import main
+sys.exit(main())
+"""
+
+
+def _ctrl_c_as_in_a_terminal():
+    """SIGINT as a terminal gives it, whatever pytest inherited (ignored in a background
+    job, where Python installs no KeyboardInterrupt handler)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@pytest.mark.parametrize("module", ["numpy", "scipy.spatial", "boids_env.config", "pymunk"])
+def test_ctrl_c_while_the_command_starts_is_one_line_and_exit_130(tmp_path, module):
+    """The imports of the first second (numpy, scipy, pymunk) ran before main() could catch
+    a Ctrl-C, which printed a traceback (inside numpy's import, as an ImportError)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "o"
+    code = INTERRUPTED_IMPORT.format(module=module, out=str(out))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, check=False, preexec_fn=_ctrl_c_as_in_a_terminal)
+    err = proc.stderr.strip()
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert re.fullmatch(r"boids( run)?: interrupted", err), err
+    assert not out.exists()
+
+
+def test_boids_version_is_the_packages(capsys):
+    import tomllib
+    from pathlib import Path
+
+    project = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out.strip() == f"boids-env {project['project']['version']}"
+
+
+def test_ros_controller_help_recommends_what_works():
+    """It recommended Debian's dynparam, which the README says cannot find its package."""
+    text = build_parser()._subparsers._group_actions[0].choices["ros"]._subparsers \
+        ._group_actions[0].choices["controller"].format_help()
+    text = re.sub(r"\s+", " ", text)
+    assert "boids ros reconfigure leader_weight=1.1" in text, text
+    assert "dynparam" not in text
+
+
+def test_an_external_leader_has_no_path_deviation_and_metrics_json_stays_json(tmp_path,
+                                                                             capsys):
+    """It printed nan and wrote NaN, which is not JSON, into metrics.json."""
+    assert main(["run", "--path", "external", "--robots", "3", "--max-cycles", "10",
+                 "--out", str(tmp_path / "o")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines()
+                if x.startswith("leader_path_deviation"))
+    assert line.split()[1] == "n/a", line
+
+    def refuse(constant):
+        raise ValueError(f"{constant} is not JSON")
+
+    metrics = json.loads((tmp_path / "o" / "metrics.json").read_text(), parse_constant=refuse)
+    assert metrics["leader_path_deviation"] is None
+    assert metrics["leader_path_deviation_max"] is None
+    assert metrics["steps"] == 10 and metrics["min_distance"] > 0

@@ -39,6 +39,21 @@ def test_unknown_config_field_is_a_type_error():
         EnvConfig.from_kwargs(path="waypoints")
 
 
+@pytest.mark.parametrize("value", [["34"], "34", [("1", 2.0)], [(True, 0.0)], [(0.0, False)],
+                                   [(1 + 2j, 0.0)], [(None, 1.0)], [b"12"], [{1: 2, 3: 4}]])
+def test_waypoints_must_be_pairs_of_real_numbers(value):
+    """A string is not a pair ("34" once became (3, 4)), and strings, bools, complex numbers and
+    None are not coordinates (they were coerced by float())."""
+    with pytest.raises(ValueError, match=r"waypoints must be a sequence of \(x, y\) pairs"):
+        EnvConfig.from_kwargs(path="waypoints", waypoints=value)
+
+
+def test_waypoints_take_numeric_pairs_of_any_kind():
+    for value in ([(1, 2)], [[1.0, 2.0]], np.array([[1.0, 2.0]]), [np.array([1, 2])]):
+        config = EnvConfig.from_kwargs(path="waypoints", waypoints=value)
+        assert config.scenario.waypoints == ((1.0, 2.0),), value
+
+
 def stepped_env(steps=10):
     e = parallel_env(robots=5)
     e.reset(seed=0)

@@ -38,3 +38,21 @@ def test_append_line_never_glues_onto_a_torn_line(tmp_path):
         fh.write('{"b": 2, "trunc')  # a write torn by a kill
     files.append_line(log, '{"c": 3}')
     assert log.read_text().splitlines() == ['{"a": 1}', '{"b": 2, "trunc', '{"c": 3}']
+
+
+def test_write_json_writes_non_finite_floats_as_null(tmp_path):
+    """NaN (a metric that does not apply) is not JSON: strict readers refused the file."""
+    import json
+
+    import numpy as np
+
+    from boids_env.files import write_json
+
+    path = write_json(tmp_path / "m.json", {"a": float("nan"), "b": [np.inf, 1.5, np.float64(2)],
+                                            "c": {"d": (-np.inf, "x")}, "e": None})
+
+    def refuse(constant):
+        raise ValueError(f"{constant} is not JSON")
+
+    assert json.loads(path.read_text(), parse_constant=refuse) == {
+        "a": None, "b": [None, 1.5, 2.0], "c": {"d": [None, "x"]}, "e": None}

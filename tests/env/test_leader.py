@@ -72,3 +72,18 @@ def test_external_leader_follows_commands():
     square.reset(seed=0)
     with pytest.raises(RuntimeError, match="path='external'"):
         square.set_leader_command([0.1, 0.0])
+
+
+def test_external_leader_keeps_a_copy_of_the_callers_command():
+    """Editing the array passed to set_leader_command afterwards changes nothing: the leader
+    holds its own copy (a NaN written into the caller's array never reaches the world)."""
+    e = parallel_env(robots=3, path="external", startup_time=0.0, max_cycles=30)
+    e.reset(seed=0)
+    command = np.array([0.3, 0.0])
+    e.set_leader_command(command)
+    command[:] = [np.nan, -1.0]
+    obs, *_ = e.step({a: np.zeros(2) for a in e.agents})
+    assert e.snapshot().commanded[0].tolist() == [0.3, 0.0]
+    for agent, o in obs.items():
+        assert np.isfinite(o).all(), f"{agent}: non-finite observation {o}"
+    assert command.tolist()[1] == -1.0, "the caller's own array is left as the caller wrote it"

@@ -8,7 +8,16 @@ import numpy as np
 import pytest
 
 from boids_env import style
-from boids_env.drawing import ARENA, HEIGHT, MIN_RADIUS, WIDTH, draw_arrow, wrap_text
+from boids_env.drawing import (
+    ARENA,
+    BACKGROUND,
+    HEIGHT,
+    MARGIN,
+    MIN_RADIUS,
+    WIDTH,
+    draw_arrow,
+    wrap_text,
+)
 from boids_env.render import Frame, Renderer
 
 RADIUS = 0.036
@@ -37,6 +46,18 @@ def test_robots_are_discs_of_at_least_the_minimum_radius(view):
     if view == "follow":
         assert r.scale > 100, f"the camera zooms onto the flock: {r.scale:.0f} px/m"
         assert drawn == round(RADIUS * r.scale), "robots at their true size when zoomed"
+
+
+@pytest.mark.parametrize("view", ["arena", "follow"])
+def test_the_axes_say_their_unit(view):
+    """The GIF's grid numbers had no unit: the one tick that carried "m" was often out of
+    view. A caption in the top margin says what they are."""
+    r = Renderer("rgb_array", 5.0, view=view)
+    image = r.draw(_scene([[0, 0], [-0.5, 0], [0, -0.5]]))
+    top = image[:MARGIN, MARGIN:ARENA // 2]
+    ink = int((np.abs(top.astype(int) - BACKGROUND).max(axis=-1) > 40).sum())
+    assert ink > 150, f"the caption is drawn in the top margin ({ink} px of text)"
+    assert r.axis_caption == "x, y in m (world frame); grid 1 m", r.axis_caption
 
 
 def test_touching_robots_are_ringed_and_counted():

@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -46,3 +47,44 @@ def test_report_of_a_missing_folder_is_a_clear_error(tmp_path, capsys):
 def test_eval_rejects_a_preset_on_a_non_reynolds_policy(tmp_path, capsys):
     assert main(["eval", "--policy", "random@paper", "--out", str(tmp_path)]) == 2
     assert "only reynolds takes a @preset" in capsys.readouterr().err
+
+
+def test_eval_refuses_a_zip_that_is_no_model_before_writing(tmp_path, capsys):
+    """The README promises a policy that cannot load is refused first; a zip without a model
+    in it once made the folder, failed every episode and exited 1."""
+    import zipfile
+
+    junk = tmp_path / "junk.zip"
+    with zipfile.ZipFile(junk, "w") as archive:
+        archive.writestr("readme.txt", "not a model")
+    out = tmp_path / "out"
+    assert main(["eval", "--policy", str(junk), "--seeds", "1", "--out", str(out),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "junk.zip is not a Stable-Baselines3 model" in err and "Traceback" not in err, err
+    assert not out.exists()
+
+
+def test_eval_says_it_builds_the_report_and_names_both_reports(tmp_path, capsys, monkeypatch):
+    """The report takes seconds with nothing shown, and the last line named report.md only."""
+    import boids_env.eval.report as report
+
+    def build(out):
+        out = Path(out)
+        said = capsys.readouterr().out
+        assert "building the statistics, figures and report" in said, said
+        (out / "report.md").write_text("# r\n")
+        (out / "report.html").write_text("<p>r</p>\n")
+        return out / "report.md"
+
+    monkeypatch.setattr(report, "build_report", build)
+    suite = tmp_path / "tiny.toml"
+    suite.write_text('name = "tiny"\nseeds = 1\n[defaults]\nrobots = 3\nmax_cycles = 5\n'
+                     '[[case]]\nname = "one"\n')
+    out = tmp_path / "out"
+    assert main(["eval", "--suite", str(suite), "--backend", "inline", "--out", str(out)]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert str(out / "report.md") in last and str(out / "report.html") in last, last
+    assert main(["report", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert str(out / "report.html") in said.strip().splitlines()[-1], said

@@ -78,6 +78,21 @@ def test_numbers_never_show_minus_zero(folder):
     assert not re.search(r"-0\.0+(?![0-9])", text), "a negative zero like -0.000"
 
 
+def test_p_values_never_print_as_zero():
+    """statsmodels' Tukey test returns p = 0 for large differences; the tables printed "0"."""
+    from boids_env.eval.report import _md_table
+
+    table = pd.DataFrame({"metric": ["a", "b", "c"], "p_adj": [0.0, 2.26e-8, 0.0421],
+                          "levene_p": [1e-12, 0.5, np.nan], "p_holm": [0.0, 1.0, 0.2],
+                          "polarization": [0.98765, 0.5, 0.25]})
+    rows = [[c.strip() for c in line.strip("|").split("|")]
+            for line in _md_table(table).splitlines()[2:]]
+    assert [r[1] for r in rows] == ["< 0.001", "< 0.001", "0.0421"], rows
+    assert [r[2] for r in rows] == ["< 0.001", "0.5", "—"], rows
+    assert [r[3] for r in rows] == ["< 0.001", "1", "0.2"], rows
+    assert [r[4] for r in rows] == ["0.9877", "0.5000", "0.2500"], "not a p-value"
+
+
 def test_every_table_names_its_alignment_rule(folder):
     text = (folder / "report.md").read_text()
     assert "Tukey HSD behind these verdicts (alignment: the study's unwrapped rule)" in text
@@ -136,6 +151,20 @@ def test_safety_table_figure_and_verdicts(folder):
         comp["metric"])
     walls = comp[comp.metric == "wall_fraction"]
     assert (walls["direction"] == "no significant difference").all(), "equal: no difference"
+
+
+def test_every_safety_panel_names_its_cases_and_marks_zero_bars(folder):
+    """The upper panels had no case names and zero bars were invisible: mostly empty."""
+    svg = (folder / "figures" / "safety.svg").read_text()
+    panels = svg.count("nearest-neighbour gap") + svg.count("time some robots touch") + \
+        svg.count("time at a wall") + svg.count("contact onsets (all pairs)")
+    assert panels == 4, panels
+    for case in ("leader_speed=0.5", "robots=19"):
+        assert svg.count(f">{case}<") == 4, f"{case} named under every panel"
+    # reynolds[paper] has no contact onsets in the fixture, the crowder has many: a zero bar
+    # marked in each of the 9 cases (the all-zero wall panel says "all zero" instead)
+    assert svg.count('id="zero_bar') == 9, svg.count('id="zero_bar')
+    assert "all zero" in svg
 
 
 def test_safety_verdict_logic_on_hand_made_numbers():

@@ -104,3 +104,24 @@ def test_a_runner_row_that_is_not_json_is_a_failed_episode_not_a_crash(tmp_path)
     assert table.empty and pd.read_parquet(tmp_path / "results.parquet").empty
     errors = read_jsonl(tmp_path / ERRORS)
     assert len(errors) == 2 and all("not a JSON object" in e["error"] for e in errors)
+
+
+def test_the_episodes_bar_shows_on_a_terminal_only(tmp_path, monkeypatch):
+    """Piped into a log (boids eval > log), the bar's redraws filled it with half lines."""
+    import io
+    import sys
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    suite = suite_from_dict({**TINY, "seeds": 1})
+    for stream, out in ((io.StringIO(), "piped"), (Terminal(), "terminal")):
+        monkeypatch.setattr(sys, "stderr", stream)
+        run_suite([PolicySpec("reynolds")], suite, tmp_path / out, workers=1, progress=True,
+                  backend="inline")
+        shown = stream.getvalue()
+        if out == "piped":
+            assert shown == "", shown
+        else:
+            assert "episodes: 100%" in shown and "2/2" in shown, shown

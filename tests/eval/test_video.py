@@ -2,6 +2,8 @@
 and MP4 encoding with progress."""
 
 import importlib.util
+import io
+import sys
 
 import numpy as np
 import pytest
@@ -56,11 +58,10 @@ def test_the_hud_runs_the_episodes_v_to_its_final_numbers(recording):
             and f"V_align {m['V_align']:.3f}" in lines[-1]), (lines[-1], m)
 
 
-def test_gif_keeps_every_frame_and_the_arrow_colours(recording, tmp_path, capsys):
+def test_gif_keeps_every_frame_and_the_arrow_colours(recording, tmp_path):
     from PIL import Image
 
     info = write_video(recording, tmp_path / "e.gif", progress=True)
-    assert "encoding e.gif" in capsys.readouterr().err, "a progress bar while encoding"
     assert info.frames == 31 and info.fps == pytest.approx(10.0) and info.seconds > 0
     gif = Image.open(tmp_path / "e.gif")
     assert gif.n_frames == 31 and gif.info["duration"] == 100, "2x real time"
@@ -69,6 +70,38 @@ def test_gif_keeps_every_frame_and_the_arrow_colours(recording, tmp_path, capsys
     assert _has(last[:, :ARENA], style.RULE_COLOURS["separation"], tol=20) > 20, \
         "the shared palette keeps the arrow colours that the first frame lacks"
     assert [p.name for p in tmp_path.iterdir()] == ["e.gif"], "no temporary file left"
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_the_encoding_bar_shows_on_a_terminal_only(recording, tmp_path, monkeypatch):
+    """A bar's redraws would fill a piped log with half lines; on a terminal it shows."""
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    write_video(recording, tmp_path / "a.gif", progress=True)
+    assert "encoding a.gif" in terminal.getvalue() and "/31" in terminal.getvalue()
+    piped = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", piped)
+    write_video(recording, tmp_path / "b.gif", progress=True)
+    assert piped.getvalue() == "", "no bar in a piped log"
+
+
+def test_the_render_extra_installs_the_encoding_bar():
+    """The README's first command installs the render extra only: tqdm was in eval and train,
+    so the bar was silently skipped there."""
+    import tomllib
+    from pathlib import Path
+
+    from boids_env.extras import EXTRAS
+
+    project = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())
+    for extra in ("render", "video"):
+        wants = project["project"]["optional-dependencies"][extra]
+        assert any(r.startswith("tqdm") for r in wants), (extra, wants)
+        assert "tqdm" in EXTRAS[extra], extra
 
 
 @pytest.mark.skipif(importlib.util.find_spec("imageio_ffmpeg") is None,

@@ -71,6 +71,26 @@ def test_bad_specs_are_refused_without_building_anything(tmp_path, here):
         check_policy_spec("random@paper")
 
 
+def test_a_zip_that_is_no_model_is_refused_by_the_check(tmp_path):
+    """A zip without a model in it (or with a broken stored actor) was let through the check
+    and failed in every episode of boids eval instead."""
+    import zipfile
+
+    from boids_env.policies.mlp_actor import ACTOR_ENTRY
+
+    empty = tmp_path / "empty.zip"
+    with zipfile.ZipFile(empty, "w") as archive:
+        archive.writestr("notes.txt", "hello")
+    with pytest.raises(ValueError, match=r"empty\.zip is not a Stable-Baselines3 model.*"
+                                         r"lacks data, policy\.pth"):
+        check_policy_spec(str(empty))
+    broken = tmp_path / "broken.zip"
+    with zipfile.ZipFile(broken, "w") as archive:
+        archive.writestr(ACTOR_ENTRY, b"not an npz")
+    with pytest.raises(ValueError, match=r"broken\.zip.*not a stored MLP actor"):
+        check_policy_spec(str(broken))
+
+
 def test_a_module_that_fails_to_import_is_a_value_error(tmp_path, monkeypatch):
     (tmp_path / "broken_policy_mod.py").write_text("def oops(:\n")
     monkeypatch.syspath_prepend(str(tmp_path))

@@ -63,6 +63,46 @@ def test_boids_train_refuses_a_bad_config_before_writing(tmp_path, capsys):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("entries, message", [
+    ({"notes.txt": "x"}, "is not a Stable-Baselines3 checkpoint (its zip lacks data, "
+                         "policy.pth)"),
+    ({"data": '{"num_timesteps": 5}', "policy.pth": "garbage"}, "cannot resume from"),
+])
+def test_a_checkpoint_that_cannot_resume_is_refused_before_writing(tmp_path, capsys, entries,
+                                                                   message):
+    """It once wrote config.json, then printed SB3's AssertionError traceback."""
+    import zipfile
+
+    junk = tmp_path / "junk.zip"
+    with zipfile.ZipFile(junk, "w") as archive:
+        for name, text in entries.items():
+            archive.writestr(name, text)
+    out = tmp_path / "t"
+    assert main(["train", "--resume", str(junk), "--timesteps", "100", "--copies", "1",
+                 "--group-sizes", "3", "--no-progress", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "junk.zip" in err, err
+    assert "Traceback" not in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("command", [
+    ["train", "--timesteps", "100", "--copies", "1", "--group-sizes", "3", "--no-progress"],
+    ["run", "--robots", "3"], ["eval", "--seeds", "1", "--no-progress"]])
+def test_out_under_a_file_is_refused_before_any_work(tmp_path, capsys, command):
+    """``--out /etc/hostname/sub`` was found only when the outputs were written, after the
+    episode had run."""
+    target = tmp_path / "taken"
+    target.write_text("a user's file")
+    assert main([*command, "--out", str(target / "sub")]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert f"--out {target / 'sub'}: {target} is a file, so no folder can be made" in err, err
+    assert "Traceback" not in err and len(err.splitlines()) == 1
+    assert "V_sep" not in captured.out, "the episode ran before the refusal"
+    assert target.read_text() == "a user's file"
+
+
 @pytest.mark.parametrize("command", [["train"], ["run", "--robots", "3"],
                                      ["eval", "--seeds", "1"]])
 def test_out_that_is_a_file_is_refused_before_any_work(tmp_path, capsys, command):
@@ -95,3 +135,32 @@ def test_cuda_without_a_gpu_is_refused_before_writing(tmp_path, capsys):
     assert main(["train", "--device", "cuda", "--out", str(out)]) == 2
     assert "torch sees no GPU" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_boids_train_shows_its_bar_on_a_terminal_only(tmp_path, monkeypatch):
+    """SB3's bar redraws filled a piped training log."""
+    import io
+    import sys
+
+    import boids_env.train.run as run
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    asked = []
+
+    def train(config, out, *, resume=None, overwrite=False, progress_bar=False):
+        asked.append(progress_bar)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(run, "train", train)
+    argv = ["train", "--timesteps", "100", "--copies", "1", "--group-sizes", "3", "--out",
+            str(tmp_path / "t")]
+    for stream in (io.StringIO(), Terminal()):
+        monkeypatch.setattr(sys, "stderr", stream)
+        assert main(argv) == 2
+    assert asked == [False, True]
+    monkeypatch.setattr(sys, "stderr", Terminal())
+    assert main([*argv, "--no-progress"]) == 2
+    assert asked[-1] is False
