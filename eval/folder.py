@@ -80,6 +80,9 @@ def _legacy_train(out: Path) -> list[str]:
 EVAL = Owner(KIND, RUNNER_OUTPUTS, REPORT_OUTPUTS, r"verdicts_[A-Za-z0-9._-]+\.csv",
              _legacy_eval)
 TRAIN = Owner(TRAIN_KIND, TRAIN_OUTPUTS, legacy=_legacy_train)
+SWEEP = Owner("boids train --seeds", ("sweep.json", "seeds.csv", "seeds.md"),
+              pattern=r"seed_[0-9]+|\.seed_[0-9]+\.job\.json")
+"""A sweep of training seeds: its table and one training folder per seed."""
 
 
 def check_target(out: Path) -> None:

@@ -126,6 +126,15 @@ def pair_difference(table: pd.DataFrame, group1: str, group2: str) -> tuple[floa
     raise KeyError(f"no pair {group1!r}, {group2!r} in the Tukey table")
 
 
+def iqm(values: npt.ArrayLike) -> float:
+    """Interquartile mean: the mean of the middle half of the values (25 % trimmed from each
+    end, as rliable reports scores over training seeds; the plain mean below 4 values)."""
+    v = np.asarray(values, dtype=float).ravel()
+    if len(v) == 0:
+        raise ValueError("iqm needs at least one value")
+    return float(stats.trim_mean(v, 0.25))
+
+
 def bootstrap_ci(values: npt.ArrayLike, level: float = 0.95, n_resamples: int = 9999,
                  seed: int = 0) -> tuple[float, float]:
     """Percentile bootstrap confidence interval of the mean (scipy); exact for constant

@@ -15,6 +15,7 @@ import sys
 import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 
 def _train_parser(sub: argparse._SubParsersAction) -> None:
@@ -33,6 +34,15 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--timesteps", type=int, default=None, dest="total_timesteps",
                    help="follower-steps in all (PPO rounds up to whole rollouts)")
     p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--seeds", type=int, nargs="+", default=None, metavar="N",
+                   help="train these seeds, each in --out/seed_N, as separate processes (or "
+                   "Ray tasks with --backend ray), then write --out/seeds.csv and seeds.md; "
+                   "a rerun trains only the seeds not finished")
+    p.add_argument("--backend", choices=("process", "ray"), default="process",
+                   help="with --seeds: local processes (default) or Ray tasks (RAY_ADDRESS "
+                   "picks the cluster; --out on a file system every node sees)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="with --seeds: seeds trained at once (default: all)")
     p.add_argument("--copies", type=int, default=None, help="env copies stepped together")
     p.add_argument("--processes", type=int, default=None,
                    help="env worker processes (0: one per core from 3 cores on)")
@@ -72,6 +82,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
         if not torch.cuda.is_available():
             raise ValueError("--device cuda but torch sees no GPU; use --device cpu or auto")
+    if args.seeds is not None:
+        return _sweep(args, config)
+    if args.backend != "process" or args.workers is not None:
+        raise ValueError("--backend and --workers go with --seeds")
     from boids_env.eval.progress import on_terminal
     from boids_env.train.run import train
 
@@ -80,6 +94,23 @@ def _cmd_train(args: argparse.Namespace) -> int:
                   progress_bar=not args.no_progress and on_terminal())
     written = sorted(p.name + ("/" if p.is_dir() else "") for p in model.parent.iterdir())
     print(f"wrote {model}; {args.out} holds {', '.join(written)}")
+    return 0
+
+
+def _sweep(args: argparse.Namespace, config: Any) -> int:
+    """``boids train --seeds ...``: every seed in a folder of its own, then the seeds table."""
+    if args.seed is not None or args.resume is not None:
+        raise ValueError("--seeds trains several seeds: give neither --seed nor --resume (a "
+                         "rerun goes on from each unfinished seed's last checkpoint)")
+    if args.backend == "ray":
+        from boids_env.extras import require
+
+        require("ray", purpose="boids train --backend ray")
+    from boids_env.train.sweep import run_sweep
+
+    table = run_sweep(config, args.seeds, args.out, backend=args.backend, workers=args.workers,
+                      overwrite=args.overwrite)
+    print(f"wrote {table} and {table.with_suffix('.md')}")
     return 0
 
 
