@@ -21,6 +21,7 @@ from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
 from boids_env.layout import follower_cells
 from boids_env.realism import RealismConfig
+from boids_env.vectors import times_matrix
 
 FRAMES = ("world", "leader")
 """Observation (and action) frames: the study's world frame, or the leader's heading frame
@@ -365,12 +366,13 @@ def scene_matrix(scenario: ScenarioConfig) -> np.ndarray:
     """The matrix T (2, 2) of ``path_rotation`` and ``path_mirror``: world = T @ local."""
     a = math.radians(scenario.path_rotation)
     rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-    return rot @ np.diag([-1.0 if scenario.path_mirror else 1.0, 1.0])
+    return rot * np.array([-1.0 if scenario.path_mirror else 1.0, 1.0])  # rot @ diag, exact
 
 
 def layout_extent(scenario: ScenarioConfig) -> float:
     """Largest |coordinate| (m) an initial position can take, jitter included."""
-    cells = follower_cells(scenario.robots, scenario.layout_spacing) @ scene_matrix(scenario).T
+    cells = times_matrix(follower_cells(scenario.robots, scenario.layout_spacing),
+                         scene_matrix(scenario).T)
     return float(np.abs(cells).max(initial=0.0)) + scenario.init_jitter
 
 
@@ -387,7 +389,7 @@ def path_extent(scenario: ScenarioConfig) -> float:
                "circle": (-s, 0.0, -s / 2, s / 2), "figure_eight": (-s / 2, s / 2, -s, s)}
         x0, x1, y0, y1 = box[scenario.path]
         points = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
-    return float(np.abs(points @ scene_matrix(scenario).T).max())
+    return float(np.abs(times_matrix(points, scene_matrix(scenario).T)).max())
 
 
 def fastest_speed(config: EnvConfig) -> tuple[float, str]:

@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env.config import CURVE_SPEED_FACTOR, LEADER_MAX_SPEED, scene_matrix
-from boids_env.vectors import as_velocities, clip_speed
+from boids_env.vectors import as_velocities, clip_speed, times_matrix
 
 if TYPE_CHECKING:
     from boids_env.config import ScenarioConfig
@@ -50,8 +50,8 @@ class Leader:
             return np.zeros(2)
         if not self._turned:
             return self._move(t - self.startup_time, position)
-        local = np.asarray(position, dtype=float) @ self.transform  # T⁻¹ = Tᵀ
-        return self._move(t - self.startup_time, local) @ self.transform.T
+        local = times_matrix(position, self.transform)  # T⁻¹ = Tᵀ
+        return times_matrix(self._move(t - self.startup_time, local), self.transform.T)
 
     def _move(self, t: float, position: Vec) -> Vec:
         raise NotImplementedError
@@ -67,7 +67,7 @@ class Leader:
         local = self._local_path()
         if local is None or not self._turned:
             return local
-        return local @ self.transform.T
+        return times_matrix(local, self.transform.T)
 
     def _local_path(self) -> Vec | None:
         return None
@@ -83,7 +83,7 @@ class Leader:
             moving = np.flatnonzero(np.hypot(steps[:, 0], steps[:, 1]) > 1e-9)
             if len(moving):
                 direction = steps[moving[0]]
-        x, y = self.transform @ direction
+        x, y = times_matrix(direction, self.transform.T)
         return math.atan2(y, x)
 
 

@@ -34,6 +34,8 @@ import numpy.typing as npt
 from gymnasium import spaces
 from scipy.spatial import cKDTree
 
+from boids_env.vectors import times_matrix
+
 if TYPE_CHECKING:
     from boids_env.config import EnvConfig
 
@@ -205,8 +207,8 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
     if frame is not None:
         # Distances do not change under a rotation, so the neighbour search and its order are
         # the same; rotating the inputs rotates every vector of the observation.
-        positions = positions @ frame
-        velocities = velocities @ frame
+        positions = times_matrix(positions, frame)
+        velocities = times_matrix(velocities, frame)
     # One feature table, a row per robot plus an all-zero row that empty slots point at:
     # position, velocity (clipped), valid flag. Slots are one gather from it.
     table = np.zeros((n + 1, SLOT_SIZE))
@@ -229,7 +231,7 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         offset = nearest_wall(world_positions[1:], arena_half_size)
         near = np.linalg.norm(offset, axis=1) <= horizon
         if frame is not None:
-            offset = offset @ frame
+            offset = times_matrix(offset, frame)
         obs[:, layout.wall] = np.column_stack([offset * near[:, None], near])
     return obs
 
@@ -287,7 +289,7 @@ class Observer:
                                    "their actions into commands")
             actions = actions + self._leader_velocity
         frame = self.frame
-        return actions if frame is None else actions @ frame.T
+        return actions if frame is None else times_matrix(actions, frame.T)
 
     def __call__(self, positions: FloatArray, velocities: FloatArray
                  ) -> npt.NDArray[np.float32]:

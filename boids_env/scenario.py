@@ -11,6 +11,7 @@ import numpy.typing as npt
 
 from boids_env.config import scene_matrix
 from boids_env.layout import PAPER_LAYOUTS, follower_cells, grid_cells
+from boids_env.vectors import times_matrix
 
 if TYPE_CHECKING:
     from boids_env.config import ScenarioConfig
@@ -27,7 +28,7 @@ def initial_positions(scenario: ScenarioConfig, rng: np.random.Generator | None
     """
     cells = follower_cells(scenario.robots, scenario.layout_spacing)
     if scenario.path_rotation or scenario.path_mirror:
-        cells = cells @ scene_matrix(scenario).T
+        cells = times_matrix(cells, scene_matrix(scenario).T)
     if rng is not None and scenario.init_jitter > 0:
         cells = cells + rng.uniform(-scenario.init_jitter, scenario.init_jitter, cells.shape)
     return np.concatenate([np.zeros((1, 2)), cells])
