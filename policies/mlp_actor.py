@@ -51,6 +51,9 @@ class MLPActor(BatchPolicy):
             chained = k == 0 or w.shape[1:] == weights[k - 1].shape[:1]
             if w.ndim != 2 or b.shape != (w.shape[0],) or not chained:
                 raise ValueError(f"layer {k}: weight {w.shape} and bias {b.shape} do not chain")
+        if weights[-1].shape[0] != 2:
+            raise ValueError(f"the last layer must output an action (vx, vy), got "
+                             f"{weights[-1].shape[0]} outputs")
         # stored transposed: x @ W.T is the torch Linear's x W^T + b
         self.weights = [np.ascontiguousarray(w.T, dtype=np.float32) for w in weights]
         self.biases = [np.asarray(b, dtype=np.float32) for b in biases]

@@ -37,7 +37,14 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--leader-speeds", type=float, nargs="+", default=None)
     p.add_argument("--eval-every", type=int, default=None, help="timesteps (0: never)")
     p.add_argument("--checkpoint-every", type=int, default=None, help="timesteps (0: never)")
-    p.add_argument("--resume", default=None, help="checkpoint zip to continue from")
+    p.add_argument("--resume", default=None, help="checkpoint zip to continue from (the "
+                   "config rebuilds the model; the zip gives weights, optimizer state and step "
+                   "count, read without running anything stored in it)")
+    p.add_argument("--trust-model", action="store_true",
+                   help="with --resume: load the checkpoint through Stable-Baselines3's own "
+                   "load, which unpickles objects stored in the file and so runs any code they "
+                   "carry (a checkpoint whose network the config does not build; only for "
+                   "files you trust)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_train)
 
@@ -62,7 +69,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
             raise ValueError("--device cuda but torch sees no GPU; use --device cpu or auto")
     from boids_env.train.run import train
 
-    model = train(config, args.out, resume=args.resume, progress_bar=not args.no_progress)
+    model = train(config, args.out, resume=args.resume, progress_bar=not args.no_progress,
+                  trust_model=args.trust_model)
     written = sorted(p.name + ("/" if p.is_dir() else "") for p in model.parent.iterdir())
     print(f"wrote {model}; {args.out} holds {', '.join(written)}")
     return 0

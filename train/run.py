@@ -18,6 +18,7 @@ from stable_baselines3.common.vec_env import VecMonitor
 from boids_env.policies.sb3_policy import algorithm_class, read_meta, write_meta
 from boids_env.train.callbacks import Checkpoints, FlockEvalCallback, TrainingMetricsCallback
 from boids_env.train.config import TrainConfig
+from boids_env.train.resume import load_checkpoint
 from boids_env.train.vec_env import CopySpec, FlockVecEnv
 
 
@@ -72,15 +73,39 @@ def whole_rollouts(config: TrainConfig, slots: int, remaining: int) -> int:
     return -(-remaining // chunk) * chunk
 
 
+def check_resume(config: TrainConfig, resume: str | Path | None, trust_model: bool) -> None:
+    """The checks of ``--resume`` (and what needs it) before anything is built or written."""
+    if resume is None:
+        if trust_model:
+            raise ValueError("trust_model applies to the checkpoint of --resume; none is given")
+        if config.resume_log_std is not None:
+            raise ValueError("resume_log_std is set but no checkpoint is resumed: it resets "
+                             "the exploration of a trained model (give --resume "
+                             "CHECKPOINT.zip)")
+        return
+    if not Path(resume).is_file():
+        raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
+    saved = read_meta(resume).get("algorithm", config.algorithm)
+    if saved != config.algorithm:
+        raise ValueError(f"checkpoint {resume} was trained with {saved}, the config says "
+                         f"algorithm={config.algorithm!r}")
+
+
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
-          progress_bar: bool = False, verbose: int = 0) -> Path:
+          progress_bar: bool = False, verbose: int = 0, trust_model: bool = False) -> Path:
     """Trains a follower policy and returns the path of the final ``model.zip``.
 
     Args:
         config: the run's configuration.
         out: output folder (created).
         resume: a checkpoint zip of this run to continue from; training goes on until
-            ``config.total_timesteps`` in all (the env copies restart their episodes).
+            ``config.total_timesteps`` in all (the env copies restart their episodes). The
+            config rebuilds the model and the checkpoint gives its weights, optimizer state
+            and step count, read without running anything stored in the zip
+            (:mod:`boids_env.train.resume`).
+        trust_model: load ``resume`` through SB3's own load instead, which unpickles the
+            objects stored in the zip (a checkpoint whose network the config does not build;
+            only for files you trust).
         progress_bar: show SB3's progress bar (tqdm + rich).
         verbose: SB3 verbosity (0 quiet, 1 tables).
     """
@@ -88,27 +113,18 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
 
     check_episodes(config)
     out = Path(out)
-    if resume is not None and not Path(resume).is_file():
-        raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
-    if resume is None and config.resume_log_std is not None:
-        raise ValueError("resume_log_std is set but no checkpoint is resumed: it resets the "
-                         "exploration of a trained model (give --resume CHECKPOINT.zip)")
-    out.mkdir(parents=True, exist_ok=True)
+    check_resume(config, resume, trust_model)
     torch.set_num_threads(config.resolved_threads())
     device = config.resolved_device()
     if device == "cuda" and not torch.cuda.is_available():
         raise ValueError("device='cuda' but torch sees no GPU; use device='cpu' or 'auto'")
-    (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
     meta = model_meta(config)
     venv = VecMonitor(make_vec_env(config))
     cls = algorithm_class(config.algorithm)
     try:
-        if resume is not None:
-            saved = read_meta(resume).get("algorithm", config.algorithm)
-            if saved != config.algorithm:
-                raise ValueError(f"checkpoint {resume} was trained with {saved}, the config "
-                                 f"says algorithm={config.algorithm!r}")
-            model = cls.load(resume, env=venv, device=device, tensorboard_log=str(out / "tb"))
+        if resume is not None:  # a checkpoint that cannot be read is refused before writing
+            model = load_checkpoint(resume, config, venv, device, str(out / "tb"), verbose,
+                                    trust=trust_model)
             model.set_random_seed(config.seed)
             if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
                 with torch.no_grad():
@@ -116,6 +132,8 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
         else:
             model = cls("MlpPolicy", venv, device=device, verbose=verbose,
                         tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
         remaining = config.total_timesteps - (model.num_timesteps if resume else 0)
 
         def save(path: Path) -> None:
