@@ -35,6 +35,11 @@ SLICE_BITS = 16
 MANTISSA_BITS = 53
 """float64 holds every integer up to 2^53 exactly."""
 _SLICE = float(2**SLICE_BITS)
+SINGLE_THREAD_PRODUCT = 262_144
+"""Multiply-adds per matrix product call: OpenBLAS (numpy's BLAS) runs a product of at most
+this many on one thread. Larger ones it splits over threads, which spin while they wait: with
+eval workers on every core, or other programs, a learned suite ran 3x slower. A few small
+calls cost little, and the result is the same (exact) however the rows are grouped."""
 
 
 def weight_bits(inputs: int) -> int:
@@ -71,6 +76,7 @@ class ExactLinear:
         # (1, H) powers of two: the column's, and the rows' slices' 2^-16
         self.column_scale = np.ldexp(1.0, exponents - self.w_bits - SLICE_BITS)
         self.bias = np.asarray(bias, dtype=np.float64)
+        self.rows_per_call = max(1, SINGLE_THREAD_PRODUCT // w.size)
 
     def __call__(self, x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """``x @ w + b`` for ``x`` (F, K) float64."""
@@ -84,7 +90,10 @@ class ExactLinear:
         np.rint(np.multiply(scaled, _SLICE, out=scaled), out=slices[n:])
         # one product for both slices (rows stacked): exact in any summation order, since
         # every partial sum is an integer below 2^53
-        both = slices @ self.q
+        both = np.empty((2 * n, self.q.shape[1]))
+        for start in range(0, 2 * n, self.rows_per_call):
+            end = start + self.rows_per_call
+            np.matmul(slices[start:end], self.q, out=both[start:end])
         total = np.add(both[:n], np.multiply(both[n:], 1.0 / _SLICE, out=both[n:]))
         # the row's and the column's powers of two (exact), then the bias (one rounding)
         np.multiply(np.ldexp(total, rows, out=total), self.column_scale, out=total)
