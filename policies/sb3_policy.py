@@ -50,7 +50,7 @@ def read_meta(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"cannot read SB3 model {path}: {exc}") from exc
     try:
         meta = json.loads(raw)
-    except (ValueError, UnicodeDecodeError) as exc:
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
         raise ValueError(f"SB3 model {path}: its {META_ENTRY} is not valid JSON ({exc})"
                          ) from None
     if not isinstance(meta, dict):

@@ -74,6 +74,7 @@ def _with_entry(tmp_path, raw: bytes):
 
 @pytest.mark.parametrize("raw, match", [
     (b"{broken", "boids.json is not valid JSON"),
+    (b"[" * 100_000, "boids.json is not valid JSON"),  # nested past Python's recursion limit
     (b"[1, 2]", "boids.json must be a JSON table, got list"),
     (b'{"env_fields": [6]}', "env_fields in its boids.json must be a table"),
     (b'{"env_fields": {"neighbours": -3}}', "env_fields in its boids.json are invalid: "
