@@ -34,6 +34,7 @@ import numpy.typing as npt
 from gymnasium import spaces
 from scipy.spatial import cKDTree
 
+from boids_env.vectors import times_matrix
 from boids_env.world import geometry as geo
 from boids_env.world.scene import Scene
 
@@ -311,8 +312,8 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
     if frame is not None:
         # Distances do not change under a rotation, so the neighbour search and its order are
         # the same; rotating the inputs rotates every vector of the observation.
-        positions = positions @ frame
-        velocities = velocities @ frame
+        positions = times_matrix(positions, frame)
+        velocities = times_matrix(velocities, frame)
     # One feature table, a row per robot plus an all-zero row that empty slots point at:
     # position, velocity (clipped), valid flag. Slots are one gather from it.
     table = np.zeros((n + 1, SLOT_SIZE))
@@ -348,7 +349,7 @@ def _static_block(points: FloatArray, slots: int, sensors: Sensors,
     assert sensors.scene is not None
     offsets, valid = sensors.scene.nearest_points(points, slots, sensors.static_range)
     if frame is not None:
-        offsets = offsets @ frame
+        offsets = times_matrix(offsets, frame)
     block = np.concatenate([offsets * valid[..., None], valid[..., None]], axis=2)
     return block.reshape(len(points), -1)
 
@@ -360,7 +361,7 @@ def _lidar_block(positions: FloatArray, rays: int, sensors: Sensors,
     assert sensors.scene is not None
     directions = lidar_directions(rays)
     if frame is not None:
-        directions = directions @ frame.T  # the frame's axes in the world
+        directions = times_matrix(directions, frame.T)  # the frame's axes in the world
     origins = positions[1:]
     dirs = np.broadcast_to(directions, (len(origins), rays, 2))
     ranges = sensors.scene.raycast(origins, dirs, sensors.lidar_range)
@@ -433,7 +434,7 @@ class Observer:
                                    "their actions into commands")
             actions = actions + self._leader_velocity
         frame = self.frame
-        return actions if frame is None else actions @ frame.T
+        return actions if frame is None else times_matrix(actions, frame.T)
 
     def __call__(self, positions: FloatArray, velocities: FloatArray
                  ) -> npt.NDArray[np.float32]:

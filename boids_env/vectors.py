@@ -1,4 +1,5 @@
-"""Velocity commands: strict parsing and an overflow-safe speed limit (pure numpy)."""
+"""Velocity commands: strict parsing, an overflow-safe speed limit, and 2-D linear maps that
+round the same on every CPU (pure numpy)."""
 
 from __future__ import annotations
 
@@ -31,6 +32,16 @@ def clip_speed(v: FloatArray, limit: float) -> FloatArray:
         unit = rows / big  # components in [-1, 1]: no overflow
         out[huge] = unit / np.hypot(unit[..., 0], unit[..., 1])[..., None] * limit
     return out
+
+
+def times_matrix(v: npt.ArrayLike, matrix: npt.ArrayLike) -> FloatArray:
+    """``v @ matrix`` for rows ``v`` (..., 2) and a (2, 2) ``matrix``, as two elementwise
+    products and one add per component. ``@`` goes through BLAS, whose kernel is chosen by CPU
+    and may fuse the multiply and the add (one rounding instead of two): a rotated frame then
+    differed in the last bit between machines, and a flock's dynamics amplify that."""
+    v = np.asarray(v, dtype=np.float64)
+    m = np.asarray(matrix, dtype=np.float64)
+    return v[..., 0:1] * m[0] + v[..., 1:2] * m[1]
 
 
 def as_velocities(value: Any, name: str, shape: tuple[int, ...]) -> FloatArray:

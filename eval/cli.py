@@ -16,6 +16,10 @@ from boids_env.world.realism import REALISMS
 
 MAX_FAST = 1000.0
 """Largest ``--fast`` speed-up of the live window (times real time)."""
+TRUST_HELP = ("load a model .zip through Stable-Baselines3's own load, which unpickles "
+              "objects stored in the file and so runs any code they carry: only for files you "
+              "trust. Without it a zip acts from its weights alone or is refused (see the "
+              "README, 'Model files you did not make')")
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
                "shipped PPO followers), learned-study (PPO on the study's reward alone), an "
                "SB3 model .zip, or module:object (a Policy instance, class or factory)")
@@ -108,6 +112,7 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
                        "video with --video, ROS bags with --bag / --mcap). --out must be "
                        "empty or new unless --overwrite.")
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
+    p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
     _add_env_args(p, "leader path (square)", "seed (0)")
     p.add_argument("--leader-weight", type=float, default=None,
                    help="Reynolds leader weight (preset's: 1.0); reynolds policies only")
@@ -258,7 +263,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         try:
             _, metrics = run_live(args.policy, preset=preset, seed=args.seed,
                                   fast_factor=args.fast or 4.0, env_fields=fields,
-                                  leader_weight=args.leader_weight)
+                                  leader_weight=args.leader_weight,
+                                  trust_model=args.trust_model)
         except NoDisplayError as exc:
             print(f"boids run: error: {exc}", file=sys.stderr)
             return 2
@@ -273,7 +279,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     run(args.policy, out=args.out, overwrite=args.overwrite, seed=args.seed,
         preset=preset, leader_weight=args.leader_weight, video=args.video, bag=args.bag,
-        mcap=args.mcap, bag_start=args.bag_start, env_fields=fields)
+        mcap=args.mcap, bag_start=args.bag_start, env_fields=fields,
+        trust_model=args.trust_model)
     return 0
 
 
@@ -287,6 +294,7 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                        "arguments, 130 when interrupted (finished episodes are kept).")
     p.add_argument("--policy", action="append", default=None,
                    help=POLICY_HELP + "; repeat to compare policies (first = baseline)")
+    p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="preset of a bare 'reynolds' policy (paper)")
     p.add_argument("--suite", default="paper", help="paper (default), robustness, "
@@ -334,7 +342,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if args.episode_timeout < 0:
         raise ValueError(f"--episode-timeout must be >= 0 seconds (0: no limit), got "
                          f"{args.episode_timeout:g}")
-    policies = [PolicySpec.parse(spec, preset) for spec in specs]
+    policies = [PolicySpec.parse(spec, preset, args.trust_model) for spec in specs]
     suite = load_suite(args.suite).with_seeds(args.seeds).with_blocks(args.blocks)
     if args.realism is not None:
         suite = suite.with_env(realism=args.realism)
@@ -474,6 +482,7 @@ def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
                        "boids ros reconfigure leader_weight=1.1 (or rqt_reconfigure on a full "
                        "ROS install).")
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
+    p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="Reynolds parameters of --policy reynolds (paper)")
     p.add_argument("--leader-weight", type=float, default=None,
@@ -515,7 +524,7 @@ def _cmd_ros_controller(args: argparse.Namespace) -> int:
     options = ControllerOptions(
         policy=args.policy, preset=preset, leader_weight=args.leader_weight,
         env_fields=fields, sync=args.sync, seed=args.seed, max_ticks=args.max_ticks,
-        markers=not args.no_markers, quiet=args.quiet)
+        markers=not args.no_markers, quiet=args.quiet, trust_model=args.trust_model)
     run_controller(options, [sys.argv[0], *_ros_args(args.ros_args)])
     return 0
 

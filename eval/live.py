@@ -130,20 +130,22 @@ class LiveControls:
 
 def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int = 0,
              fast_factor: float = 4.0, env_fields: dict[str, Any] | None = None,
-             leader_weight: float | None = None) -> tuple[LiveControls, dict[str, Any]]:
+             leader_weight: float | None = None, trust_model: bool = False
+             ) -> tuple[LiveControls, dict[str, Any]]:
     """Opens the window and runs episodes until ``q``; returns the final controls (the tuned
     parameters) and the last episode's metrics, the safety metrics included (with the
     leader's final position). Raises :class:`~boids_env.render.NoDisplayError` where there
-    is no display."""
+    is no display. ``trust_model``: see :func:`~boids_env.policies.registry.load_policy`'s
+    ``trust``."""
     from boids_env.checks import number
     from boids_env.environment import BoidsEnv
-    from boids_env.eval.episode import env_fields_for
+    from boids_env.eval.episode import bind_policy, env_fields_for
     from boids_env.policies.registry import load_policy
     from boids_env.recording import Recorder
 
     number("fast_factor", fast_factor, 0.0, 1000.0, lo_open=True, unit="times real time")
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
-    policy = load_policy(policy_spec, preset=preset, **overrides)
+    policy = load_policy(policy_spec, preset=preset, trust=trust_model, **overrides)
     fields = dict(env_fields or {})
     if getattr(policy, "params", None) is not None:
         fields.setdefault("horizon", MAX_HORIZON)  # room to raise the tuned horizon
@@ -152,6 +154,7 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
                             leader_speed=env.config.scenario.leader_speed)
     external = env.config.scenario.path == "external"
     obs, _ = env.reset(seed=seed)
+    bind_policy(policy, env)  # its layout and scene (the Reynolds obstacle rule)
     policy.reset(seed)
     env.render()
     renderer = env._renderer

@@ -58,7 +58,7 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         video: bool | str | None = None, bag: bool = False, mcap: bool = False,
         bag_start: float | None = None, frame_every: int = 2,
         env_fields: dict[str, Any] | None = None, quiet: bool = False,
-        progress: bool = True) -> EpisodeResult:
+        progress: bool = True, trust_model: bool = False) -> EpisodeResult:
     """Runs one episode and writes its outputs to ``out``.
 
     Args:
@@ -78,6 +78,8 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         env_fields: env config fields by flat name.
         quiet: print nothing.
         progress: progress bar while the video is encoded.
+        trust_model: a model zip may load through SB3's own load, which runs code stored in
+            the file (``load_policy(trust=True)``).
     """
     fmt = ("gif" if video else None) if isinstance(video, bool) or video is None else video
     if fmt is not None:
@@ -90,7 +92,7 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
                          f"or 'reynolds@PRESET', got {policy!r}")
     folder = RunFolder(out, overwrite=overwrite) if out is not None else None  # refuse early
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
-    pol = load_policy(policy, preset=preset, **overrides)
+    pol = load_policy(policy, preset=preset, trust=trust_model, **overrides)
     params = getattr(pol, "params", None)
     env = BoidsEnv(**env_fields_for(pol, env_fields))
     try:

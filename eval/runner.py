@@ -57,13 +57,16 @@ class PolicySpec:
     preset: str = "paper"
     name: str | None = None
     """Label in the tables and figures (default: derived from the spec)."""
+    trust: bool = False
+    """A model zip may load through SB3's own load, which runs code stored in the file
+    (``load_policy(trust=True)``, ``--trust-model``)."""
 
     @classmethod
-    def parse(cls, spec: str, preset: str = "paper") -> PolicySpec:
+    def parse(cls, spec: str, preset: str = "paper", trust: bool = False) -> PolicySpec:
         """``reynolds@boids_ros`` or any spec of ``load_policy`` with a default preset."""
         from boids_env.policies.registry import split_preset
 
-        return cls(*split_preset(spec, preset))
+        return cls(*split_preset(spec, preset), trust=trust)
 
     @property
     def label(self) -> str:
@@ -74,13 +77,18 @@ class PolicySpec:
 
     @functools.cached_property
     def fingerprint(self) -> str:
-        """Changes when the policy does (a model file's content is hashed, once)."""
+        """Changes when the policy does (a model file's content is hashed, once; a zip
+        without a numpy actor acts through torch when trusted, from its weights in numpy
+        otherwise)."""
         from boids_env.policies.registry import MODELS
 
         path = MODELS.get(self.spec, Path(self.spec))
         if path.suffix == ".zip" and path.is_file():
+            from boids_env.policies.sb3_policy import has_numpy_actor
+
             digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-            return f"{self.spec}#{digest}"
+            trusted = self.trust and not has_numpy_actor(path)
+            return f"{self.spec}#{digest}" + ("#trusted" if trusted else "")
         return f"{self.spec}|{self.preset}"
 
 
@@ -118,7 +126,7 @@ class Task:
         return hashlib.sha256(raw.encode()).hexdigest()[:20]
 
 
-_POLICY_CACHE: dict[tuple[str, str, str], Any] = {}
+_POLICY_CACHE: dict[tuple[str, str, bool, str], Any] = {}
 
 
 def run_task(task: Task) -> dict[str, Any]:
@@ -127,11 +135,12 @@ def run_task(task: Task) -> dict[str, Any]:
     from boids_env.eval.episode import env_fields_for, run_episode
     from boids_env.policies.registry import load_policy
 
-    cache_key = (task.policy.spec, task.policy.preset, json.dumps(task.case.policy,
-                                                                   sort_keys=True))
+    cache_key = (task.policy.spec, task.policy.preset, task.policy.trust,
+                 json.dumps(task.case.policy, sort_keys=True))
     policy = _POLICY_CACHE.get(cache_key)
     if policy is None:
-        policy = load_policy(task.policy.spec, preset=task.policy.preset, **task.case.policy)
+        policy = load_policy(task.policy.spec, preset=task.policy.preset,
+                             trust=task.policy.trust, **task.case.policy)
         _POLICY_CACHE[cache_key] = policy
     env = BoidsEnv(**env_fields_for(policy, task.case.env))
     try:
@@ -300,7 +309,7 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
         from boids_env.policies.registry import check_policy_spec
 
         for policy in policies:
-            check_policy_spec(policy.spec, policy.preset)
+            check_policy_spec(policy.spec, policy.preset, trust=policy.trust)
     run = runner or run_task
     if backend == "process":
         try:

@@ -3,9 +3,12 @@
 ``boids train`` stores the actor of every Gaussian MLP policy it saves (SB3's PPO/A2C
 ``MlpPolicy``: the policy network's linear layers and activations, then the action head) as
 an extra ``boids_actor.npz`` entry in the model zip. Acting from it needs only numpy: loading
-torch and Stable-Baselines3 costs about 1.5 s, four times a whole 13-robot episode. The actions
-equal torch's forward pass up to float32 rounding (the matrix products run in another
-library), so trajectories agree with those of the torch model for a while and then drift.
+torch and Stable-Baselines3 costs about 1.5 s, four times a whole 13-robot episode.
+
+The actions are the same bits on every CPU: the layers' products are exact and tanh is built
+from + - * / (:mod:`boids_env.policies.exact`), so neither the BLAS kernel nor numpy's SIMD
+dispatch changes them. They equal torch's forward pass up to torch's own float32 rounding, so
+trajectories agree with those of the torch model for a while and then drift.
 """
 
 from __future__ import annotations
@@ -17,10 +20,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.policies import exact
 from boids_env.policies.base import BatchPolicy
 
 ACTOR_ENTRY = "boids_actor.npz"
-ACTIVATIONS = {"tanh": np.tanh, "relu": lambda x: np.maximum(x, 0.0, dtype=np.float32)}
+ACTIVATIONS = {"tanh": exact.tanh, "relu": exact.relu}
 
 
 class MLPActor(BatchPolicy):
@@ -47,9 +51,14 @@ class MLPActor(BatchPolicy):
             chained = k == 0 or w.shape[1:] == weights[k - 1].shape[:1]
             if w.ndim != 2 or b.shape != (w.shape[0],) or not chained:
                 raise ValueError(f"layer {k}: weight {w.shape} and bias {b.shape} do not chain")
+        if weights[-1].shape[0] != 2:
+            raise ValueError(f"the last layer must output an action (vx, vy), got "
+                             f"{weights[-1].shape[0]} outputs")
         # stored transposed: x @ W.T is the torch Linear's x W^T + b
         self.weights = [np.ascontiguousarray(w.T, dtype=np.float32) for w in weights]
         self.biases = [np.asarray(b, dtype=np.float32) for b in biases]
+        self.layers = [exact.ExactLinear(w, b) for w, b in zip(self.weights, self.biases,
+                                                                strict=True)]
         self.activation = activation
         self.low = np.asarray(low, dtype=np.float32)
         self.high = np.asarray(high, dtype=np.float32)
@@ -58,16 +67,18 @@ class MLPActor(BatchPolicy):
         self.obs_size = int(weights[0].shape[1])
 
     def act_batch(self, obs: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
-        """Actions (F, 2) of all followers' observations (F, D) in one pass."""
-        x = np.asarray(obs, dtype=np.float32)
+        """Actions (F, 2) of all followers' observations (F, D) in one pass (float64 inside,
+        the same bits on every CPU)."""
+        x = np.asarray(obs, dtype=np.float32)  # what torch is given
         if x.ndim != 2 or x.shape[1] != self.obs_size:
             raise ValueError(
                 f"the model expects observations of size {self.obs_size}, got shape "
                 f"{x.shape}; make the env with the model's env_fields {self.env_fields}")
         act = ACTIVATIONS[self.activation]
-        for w, b in zip(self.weights[:-1], self.biases[:-1], strict=True):
-            x = act(x @ w + b)
-        out = (x @ self.weights[-1] + self.biases[-1]).reshape(-1, 2)
+        y = x.astype(np.float64)
+        for layer in self.layers[:-1]:
+            y = act(layer(y))
+        out = self.layers[-1](y).reshape(-1, 2)
         return np.clip(out, self.low, self.high).astype(np.float32)
 
     def to_bytes(self) -> bytes:

@@ -42,7 +42,7 @@ def split_preset(spec: str, preset: str = "paper") -> tuple[str, str]:
 
 
 def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
-                **reynolds_overrides: Any) -> Policy:
+                trust: bool = False, **reynolds_overrides: Any) -> Policy:
     """Builds the policy named by ``spec``.
 
     Args:
@@ -54,6 +54,11 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         preset: Reynolds parameter preset (``paper`` or ``boids_ros``) unless ``spec`` names
             one.
         max_speed: the random policy's speed range (m/s).
+        trust: a model zip may be loaded through Stable-Baselines3's own load, which
+            unpickles objects stored in the file and so runs any code they carry (only for
+            files you trust). Without it a zip acts from its arrays alone (see
+            :func:`~boids_env.policies.sb3_policy.load_model_policy`) or is refused with an
+            error that names ``--trust-model``.
         reynolds_overrides: Reynolds parameters (e.g. ``leader_weight=1.1``); other policies
             ignore them.
     """
@@ -70,7 +75,7 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         # a numpy actor
         from boids_env.policies.sb3_policy import load_model_policy
 
-        return load_model_policy(spec)
+        return load_model_policy(spec, trust=trust)
     if ":" in spec:
         obj = _import_object(spec)
         # A class passes isinstance(.., Policy) (its methods are attributes), so classes and
@@ -90,12 +95,13 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
                      f"module:object, got {spec!r}")
 
 
-def check_policy_spec(spec: str, preset: str = "paper") -> None:
+def check_policy_spec(spec: str, preset: str = "paper", *, trust: bool = False) -> None:
     """Checks, without building the policy, that :func:`load_policy` can: a built-in name, a
-    model zip that exists and whose metadata reads, or a ``module:object`` that imports and is
-    a Policy instance, class or factory. For callers that must refuse a bad spec before any
-    side effect (creating an output folder, starting workers); raises what ``load_policy``
-    would (``ValueError``, ``TypeError``, ``FileNotFoundError``)."""
+    model zip that exists and whose metadata reads (and, without ``trust``, that it can act
+    without its pickles), or a ``module:object`` that imports and is a Policy instance, class
+    or factory. For callers that must refuse a bad spec before any side effect (creating an
+    output folder, starting workers); raises what ``load_policy`` would (``ValueError``,
+    ``TypeError``, ``FileNotFoundError``)."""
     spec, preset = split_preset(spec, preset)
     if spec in ("reynolds", "random"):
         return
@@ -103,7 +109,7 @@ def check_policy_spec(spec: str, preset: str = "paper") -> None:
     if spec.endswith(".zip"):
         if not Path(spec).is_file():
             raise FileNotFoundError(f"policy model file not found: {spec}")
-        _check_model_zip(Path(spec))
+        _check_model_zip(Path(spec), trust)
         return
     if ":" in spec:
         obj = _import_object(spec)
@@ -119,14 +125,15 @@ SB3_ENTRIES = ("data", "policy.pth")
 """Entries every zip that Stable-Baselines3's ``model.save`` writes holds."""
 
 
-def _check_model_zip(path: Path) -> None:
+def _check_model_zip(path: Path, trust: bool = False) -> None:
     """Refuses a zip that cannot act as a policy: not a zip or unreadable metadata; a stored
     numpy actor is loaded whole (numpy only, milliseconds); a zip without one must at least
-    hold SB3's model entries (loading it needs torch, which this check does not import)."""
+    hold SB3's model entries (loading it needs torch, which this check does not import) and,
+    untrusted, a network its weights alone can run (nothing in it is unpickled)."""
     import zipfile
 
     from boids_env.policies.mlp_actor import ACTOR_ENTRY
-    from boids_env.policies.sb3_policy import load_model_policy, read_meta
+    from boids_env.policies.sb3_policy import check_untrusted_load, load_model_policy, read_meta
 
     read_meta(path)  # not a zip, or a bad boids.json: refused by name
     with zipfile.ZipFile(path) as archive:
@@ -140,6 +147,8 @@ def _check_model_zip(path: Path) -> None:
                          f"neither {ACTOR_ENTRY} (saved by boids train) nor SB3's "
                          f"{' and '.join(SB3_ENTRIES)} (lacks {', '.join(missing)}); give a "
                          f"zip saved by boids train or by an SB3 model's save()")
+    if not trust:
+        check_untrusted_load(path)
 
 
 def _import_object(spec: str) -> Any:

@@ -1,8 +1,12 @@
 """A saved Stable-Baselines3 model as a :class:`~policies.base.Policy` (deterministic actions).
 
 Models saved by ``boids train`` carry a ``boids.json`` entry in their zip (algorithm, the env
-fields the observations depend on, the training config); other SB3 zips load too, trying the
-algorithms in :data:`ALGORITHMS` in turn.
+fields the observations depend on, the training config) and their actor as numpy arrays
+(``boids_actor.npz``). Other SB3 zips act from their weights alone
+(:mod:`boids_env.policies.sb3_zip`), or, for a file the user trusts (``trust=True``), through
+SB3's own load, trying the algorithms in :data:`ALGORITHMS` in turn: that load unpickles
+objects stored in the zip and so runs any code they carry, which is why it is never the
+default.
 """
 
 from __future__ import annotations
@@ -51,7 +55,7 @@ def read_meta(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"cannot read SB3 model {path}: {exc}") from exc
     try:
         meta = json.loads(raw)
-    except (ValueError, UnicodeDecodeError) as exc:
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
         raise ValueError(f"SB3 model {path}: its {META_ENTRY} is not valid JSON ({exc})"
                          ) from None
     if not isinstance(meta, dict):
@@ -133,14 +137,23 @@ def has_numpy_actor(path: str | Path) -> bool:
         return False
 
 
-def load_model_policy(path: str | Path, device: str = "cpu") -> BatchPolicy:
-    """The policy of a model zip: its stored numpy actor when it has one (acting on the CPU
-    without importing torch), else :meth:`SB3Policy.load` (also for ``device`` other than
-    ``cpu``)."""
+def load_model_policy(path: str | Path, device: str = "cpu", *, trust: bool = False
+                      ) -> BatchPolicy:
+    """The policy of a model zip, loaded without running anything stored in it unless
+    ``trust``:
+
+    - its stored numpy actor when it has one (acting on the CPU without importing torch);
+    - else, untrusted, the actor built from its weights alone
+      (:func:`~boids_env.policies.sb3_zip.actor_from_weights`, needs torch to read them), or
+      an :class:`~boids_env.policies.sb3_zip.UntrustedModelError` naming ``--trust-model``;
+    - else, trusted, :meth:`SB3Policy.load` (also for ``device`` other than ``cpu``), which
+      unpickles the objects stored in the zip.
+    """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"policy model file not found: {path}")
     meta = read_meta(path)  # a file that is not a zip is refused here, by name
+    env_fields = _env_fields(path, meta.get("env_fields"))
     if device == "cpu":
         with zipfile.ZipFile(path) as zf:
             try:
@@ -149,17 +162,35 @@ def load_model_policy(path: str | Path, device: str = "cpu") -> BatchPolicy:
             except ValueError as exc:
                 raise ValueError(f"SB3 model {path}: {exc}") from None
         if raw is not None:
-            env_fields = _env_fields(path, meta.get("env_fields"))
             try:
                 return MLPActor.from_bytes(raw, env_fields, name=path.stem)
             except ValueError as exc:
                 raise ValueError(f"SB3 model {path}: {exc}") from None
+    if not trust:
+        from boids_env.policies.sb3_zip import UntrustedModelError, actor_from_weights
+
+        if device != "cpu":
+            raise UntrustedModelError(path, f"acting on device {device!r} goes through SB3's "
+                                      f"own load")
+        return actor_from_weights(path, env_fields, name=path.stem)
     try:
-        return SB3Policy.load(path, device=device)
+        return SB3Policy.load(path, device=device, trust=True)
     except ImportError as exc:
         raise ImportError(f"acting from {path.name} goes through torch (it holds no "
                           f"{ACTOR_ENTRY}: not saved by boids train, or not an MLP numpy "
                           f"runs) and needs: pip install 'boids-env[train]' ({exc})") from exc
+
+
+def check_untrusted_load(path: str | Path) -> None:
+    """Raises what :func:`load_model_policy` would for a zip loaded without trust, reading
+    only its entry list, metadata and the JSON of its ``data`` (no torch): for callers that
+    must refuse a model before any side effect."""
+    path = Path(path)
+    _env_fields(path, read_meta(path).get("env_fields"))
+    if not has_numpy_actor(path):
+        from boids_env.policies.sb3_zip import actor_plan
+
+        actor_plan(path)
 
 
 class SB3Policy(BatchPolicy):
@@ -179,19 +210,27 @@ class SB3Policy(BatchPolicy):
         self.max_speed = float(np.max(model.action_space.high))
 
     @classmethod
-    def load(cls, path: str | Path, device: str = "cpu", threads: int | None = None
-             ) -> SB3Policy:
-        """Loads a model zip; the algorithm comes from its metadata or is tried in turn.
+    def load(cls, path: str | Path, device: str = "cpu", threads: int | None = None, *,
+             trust: bool = False) -> SB3Policy:
+        """Loads a model zip through SB3's own load; the algorithm comes from its metadata or
+        is tried in turn. SB3's load unpickles the objects stored in the zip, which runs any
+        code they carry: without ``trust=True`` it is refused
+        (:class:`~boids_env.policies.sb3_zip.UntrustedModelError`); :func:`load_model_policy`
+        acts from a zip's weights alone instead.
 
         Loading a policy to act outside training also limits torch's CPU threads to
         ``threads`` (default: ``$BOIDS_TORCH_THREADS``, else 1): a batch of a few dozen
         followers through a small MLP gains nothing from more, and parallel eval workers each
         using every core oversubscribed the machine (a learned episode took 28 s instead of
         under 1 s on 2 cores)."""
-        set_inference_threads(threads)
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"policy model file not found: {path}")
+        if not trust:
+            from boids_env.policies.sb3_zip import UntrustedModelError
+
+            raise UntrustedModelError(path, "SB3Policy.load goes through SB3's own load")
+        set_inference_threads(threads)
         meta = read_meta(path)
         env_fields = _env_fields(path, meta.get("env_fields"))
         names = [meta["algorithm"]] if "algorithm" in meta else list(ALGORITHMS)
@@ -257,7 +296,8 @@ class _NoOptimizer:
 
 def _acting_only(path: Path) -> dict[str, Any]:
     """``custom_objects`` for SB3's ``load`` that build the policy without an optimizer
-    (the saved policy keyword arguments, the optimizer class replaced)."""
+    (the saved policy keyword arguments, the optimizer class replaced). Decodes the zip's
+    pickles: for trusted files only."""
     import zipfile
 
     from stable_baselines3.common.save_util import json_to_data

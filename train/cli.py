@@ -56,7 +56,13 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--checkpoint-every", type=int, default=None, help="timesteps (0: never)")
     p.add_argument("--resume", default=None, help="checkpoint zip to continue from, up to "
                    "--timesteps in all (more than it has); goes on in the --out of the "
-                   "same config")
+                   "same config (the config rebuilds the model; the zip gives weights, "
+                   "optimizer state and step count, read without running anything stored in it)")
+    p.add_argument("--trust-model", action="store_true",
+                   help="with --resume: load the checkpoint through Stable-Baselines3's own "
+                   "load, which unpickles objects stored in the file and so runs any code they "
+                   "carry (a checkpoint whose network the config does not build; only for "
+                   "files you trust)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bar (shown on a terminal only)")
     p.set_defaults(func=_cmd_train)
@@ -91,7 +97,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     # SB3's bar on a terminal only: its redraws would fill a piped log
     model = train(config, args.out, resume=args.resume, overwrite=args.overwrite,
-                  progress_bar=not args.no_progress and on_terminal())
+                  progress_bar=not args.no_progress and on_terminal(),
+                  trust_model=args.trust_model)
     written = sorted(p.name + ("/" if p.is_dir() else "") for p in model.parent.iterdir())
     print(f"wrote {model}; {args.out} holds {', '.join(written)}")
     return 0

@@ -30,6 +30,7 @@ from boids_env.policies.registry import SB3_ENTRIES
 from boids_env.policies.sb3_policy import algorithm_class, read_meta, write_meta
 from boids_env.train.callbacks import Checkpoints, FlockEvalCallback, TrainingMetricsCallback
 from boids_env.train.config import TrainConfig
+from boids_env.train.resume import load_checkpoint
 from boids_env.train.vec_env import CopySpec, FlockVecEnv
 
 
@@ -105,11 +106,13 @@ def checkpoint_timesteps(path: str | Path) -> int:
 
 
 def check_resume(config: TrainConfig, out: Path, resume: str | Path | None,
-                 overwrite: bool) -> None:
+                 overwrite: bool, trust_model: bool = False) -> None:
     """Refuses, before anything is written, a resume that would train nothing or of another
-    algorithm, a checkpoint that ``overwrite`` would delete, and ``resume_log_std`` without a
-    resume."""
+    algorithm, a checkpoint that ``overwrite`` would delete, and ``resume_log_std`` or
+    ``trust_model`` without a resume."""
     if resume is None:
+        if trust_model:
+            raise ValueError("trust_model applies to the checkpoint of --resume; none is given")
         if config.resume_log_std is not None:
             raise ValueError("resume_log_std is set but no checkpoint is resumed: it resets the "
                              "exploration of a trained model (give --resume CHECKPOINT.zip)")
@@ -146,7 +149,8 @@ def whole_rollouts(config: TrainConfig, slots: int, remaining: int) -> int:
 
 
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
-          overwrite: bool = False, progress_bar: bool = False, verbose: int = 0) -> Path:
+          overwrite: bool = False, progress_bar: bool = False, verbose: int = 0,
+          trust_model: bool = False) -> Path:
     """Trains a follower policy and returns the path of the final ``model.zip``.
 
     Everything is checked before the folder is touched.
@@ -157,9 +161,15 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
         resume: a checkpoint zip to continue from; training goes on until
             ``config.total_timesteps`` in all (which must exceed the checkpoint's; the env
             copies restart their episodes). In the folder of a training of the same config
-            (other timesteps, processes, threads or device allowed) it goes on there.
+            (other timesteps, processes, threads or device allowed) it goes on there. The
+            config rebuilds the model and the checkpoint gives its weights, optimizer state
+            and step count, read without running anything stored in the zip
+            (:mod:`boids_env.train.resume`).
         overwrite: replace an earlier training (or other outputs of ours) in ``out``: only
             what it wrote is removed.
+        trust_model: load ``resume`` through SB3's own load instead, which unpickles the
+            objects stored in the zip (a checkpoint whose network the config does not build;
+            only for files you trust).
         progress_bar: show SB3's progress bar (tqdm + rich).
         verbose: SB3 verbosity (0 quiet, 1 tables).
     """
@@ -168,7 +178,7 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     check_episodes(config)
     out = Path(out)
     folder.check_target(out)
-    check_resume(config, out, resume, overwrite)
+    check_resume(config, out, resume, overwrite, trust_model)
     device = config.resolved_device()
     if device == "cuda" and not torch.cuda.is_available():
         raise ValueError("device='cuda' but torch sees no GPU; use device='cpu' or 'auto'")
@@ -177,14 +187,9 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     venv = VecMonitor(make_vec_env(config))
     cls = algorithm_class(config.algorithm)
     try:
-        if resume is not None:
-            try:
-                model = cls.load(resume, env=venv, device=device,
-                                 tensorboard_log=str(out / "tb"))
-            except Exception as exc:  # SB3's load of a foreign file raises anything (asserts)
-                first = (str(exc).strip().splitlines() or [""])[0]  # torch's run on for lines
-                raise ValueError(f"cannot resume from {resume}: {type(exc).__name__}: {first}"
-                                 ) from None
+        if resume is not None:  # a checkpoint that cannot be read is refused before writing
+            model = load_checkpoint(resume, config, venv, device, str(out / "tb"), verbose,
+                                    trust=trust_model)
             model.set_random_seed(config.seed)
             if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
                 with torch.no_grad():

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.vectors import as_velocities, clip_speed
+from boids_env.vectors import as_velocities, clip_speed, times_matrix
 from boids_env.world.scenario import CURVE_SPEED_FACTOR, LEADER_MAX_SPEED, scene_matrix
 
 if TYPE_CHECKING:
@@ -58,7 +58,8 @@ class Leader:
             local = local - self.origin
         if not self._turned:
             return self._move(t - self.startup_time, local)
-        return self._move(t - self.startup_time, local @ self.transform) @ self.transform.T
+        turned = self._move(t - self.startup_time, times_matrix(local, self.transform))  # T⁻¹ = Tᵀ
+        return times_matrix(turned, self.transform.T)
 
     def _move(self, t: float, position: Vec) -> Vec:
         raise NotImplementedError
@@ -74,7 +75,7 @@ class Leader:
         local = self._local_path()
         if local is None:
             return None
-        world = local @ self.transform.T if self._turned else local
+        world = times_matrix(local, self.transform.T) if self._turned else local
         return world + self.origin if self._moved else world
 
     def _local_path(self) -> Vec | None:
@@ -91,7 +92,7 @@ class Leader:
             moving = np.flatnonzero(np.hypot(steps[:, 0], steps[:, 1]) > 1e-9)
             if len(moving):
                 direction = steps[moving[0]]
-        x, y = self.transform @ direction
+        x, y = times_matrix(direction, self.transform.T)
         return math.atan2(y, x)
 
 

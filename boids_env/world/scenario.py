@@ -18,6 +18,7 @@ import numpy.typing as npt
 from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
+from boids_env.vectors import times_matrix
 from boids_env.world.layout import PAPER_LAYOUTS, follower_cells, grid_cells
 
 __all__ = ["CURVE_SPEED_FACTOR", "LEADER_MAX_SPEED", "PAPER_LAYOUTS", "PATHS", "ScenarioConfig",
@@ -156,12 +157,13 @@ def scene_matrix(scenario: ScenarioConfig) -> np.ndarray:
     """The matrix T (2, 2) of ``path_rotation`` and ``path_mirror``: world = T @ local."""
     a = math.radians(scenario.path_rotation)
     rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-    return rot @ np.diag([-1.0 if scenario.path_mirror else 1.0, 1.0])
+    return rot * np.array([-1.0 if scenario.path_mirror else 1.0, 1.0])  # rot @ diag, exact
 
 
 def layout_extent(scenario: ScenarioConfig) -> float:
     """Largest |coordinate| (m) an initial position can take, jitter included."""
-    cells = follower_cells(scenario.robots, scenario.layout_spacing) @ scene_matrix(scenario).T
+    cells = times_matrix(follower_cells(scenario.robots, scenario.layout_spacing),
+                         scene_matrix(scenario).T)
     return float(np.abs(cells).max(initial=0.0)) + scenario.init_jitter
 
 
@@ -178,7 +180,7 @@ def path_extent(scenario: ScenarioConfig) -> float:
                "circle": (-s, 0.0, -s / 2, s / 2), "figure_eight": (-s / 2, s / 2, -s, s)}
         x0, x1, y0, y1 = box[scenario.path]
         points = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
-    return float(np.abs(points @ scene_matrix(scenario).T).max())
+    return float(np.abs(times_matrix(points, scene_matrix(scenario).T)).max())
 
 
 
@@ -196,10 +198,10 @@ def initial_positions(scenario: ScenarioConfig, rng: np.random.Generator | None,
     if heading is not None:
         turn = rotation_matrix(heading - math.pi / 2)
         if scenario.path_mirror:
-            turn = turn @ np.diag([-1.0, 1.0])
-        cells = cells @ turn.T
+            turn = turn * np.array([-1.0, 1.0])  # turn @ diag(-1, 1), exact
+        cells = times_matrix(cells, turn.T)
     elif scenario.path_rotation or scenario.path_mirror:
-        cells = cells @ scene_matrix(scenario).T
+        cells = times_matrix(cells, scene_matrix(scenario).T)
     if rng is not None and scenario.init_jitter > 0:
         cells = cells + rng.uniform(-scenario.init_jitter, scenario.init_jitter, cells.shape)
     positions = np.concatenate([np.zeros((1, 2)), cells])

@@ -43,6 +43,7 @@ from boids_env.eval.ros.protocol import (
     odom_topic,
 )
 from boids_env.observations import INITIAL_HEADING, Observer
+from boids_env.policies.base import Policy
 from boids_env.policies.registry import load_policy, split_preset
 from boids_env.world.realism import StaleObservations
 
@@ -78,6 +79,8 @@ class ControllerOptions:
     """Publish the rule-force markers when the policy has forces."""
     quiet: bool = False
     node_name: str = "reynolds_controller"
+    trust_model: bool = False
+    """A model zip may load through SB3's own load, which runs code stored in the file."""
 
     def __post_init__(self) -> None:
         if self.sync not in SYNC_MODES:
@@ -90,7 +93,17 @@ class ControllerOptions:
                 self.max_ticks, int) or self.max_ticks < 1):
             raise ValueError(f"max_ticks must be a positive integer or None, got "
                              f"{self.max_ticks!r}")
+        if not isinstance(self.trust_model, bool):
+            raise TypeError(f"trust_model must be True or False, got {self.trust_model!r}")
         split_preset(self.policy, self.preset)  # a bad spec or preset fails before ROS starts
+
+
+def controller_policy(options: ControllerOptions) -> Policy:
+    """The policy the node runs (loaded before the node touches ROS)."""
+    overrides = {} if options.leader_weight is None else {
+        "leader_weight": options.leader_weight}
+    spec, preset = split_preset(options.policy, options.preset)
+    return load_policy(spec, preset=preset, trust=options.trust_model, **overrides)
 
 
 class ControllerNode:
@@ -104,10 +117,7 @@ class ControllerNode:
 
     def __init__(self, options: ControllerOptions, argv: Sequence[str] | None = None) -> None:
         self.options = options
-        overrides = {} if options.leader_weight is None else {
-            "leader_weight": options.leader_weight}
-        spec, preset = split_preset(options.policy, options.preset)
-        self.policy = load_policy(spec, preset=preset, **overrides)
+        self.policy = controller_policy(options)
         self.msgs = Messages()
         rospy = self.rospy = self.msgs.rospy
         from geometry_msgs.msg import Twist

@@ -1,5 +1,7 @@
 """The study's cases stay bit-identical: trajectories and metrics of the Reynolds flock pinned
-from the code before scenes, robot models and people were added (commit e649aa0).
+from the code before scenes, robot models and people were added (commit e649aa0). Two
+trajectories were re-pinned once, when 2×2 rotations became elementwise products so that they
+round the same on every CPU (a turned circle and the leader frame: their metrics unchanged).
 
 Every case is the ideal arena (or an opt-in of that era); the SHA-256 covers every position
 and command of the episode, so any change to the physics, the leader, the observations, the

@@ -14,13 +14,14 @@ pytest.importorskip("stable_baselines3")
 from boids_env.policies.mlp_actor import ACTOR_ENTRY, MLPActor
 from boids_env.policies.registry import LEARNED_MODEL, STUDY_MODEL, load_policy
 from boids_env.policies.sb3_policy import SB3Policy, actor_of, load_model_policy, write_meta
+from boids_env.policies.sb3_zip import UntrustedModelError
 
 
 @pytest.mark.parametrize("path", [LEARNED_MODEL, STUDY_MODEL], ids=["learned", "study"])
 def test_actions_equal_sb3_predict_of_the_normally_loaded_model(path):
     from stable_baselines3 import PPO
 
-    ours = SB3Policy.load(path)
+    ours = SB3Policy.load(path, trust=True)
     reference = PPO.load(path, device="cpu")  # with its Adam optimizer, as SB3 loads it
     obs = np.random.default_rng(0).normal(0, 1, (12, ours.obs_size)).astype(np.float32)
     expected, _ = reference.predict(obs, deterministic=True)
@@ -43,7 +44,7 @@ def test_the_numpy_actor_acts_as_sb3_predict_up_to_float32_rounding(path):
         high = reference.action_space.high
         np.testing.assert_allclose(actor.act_batch(obs), np.clip(expected, -high, high),
                                    rtol=0, atol=2e-6)
-    assert actor.env_fields == SB3Policy.load(path).env_fields
+    assert actor.env_fields == SB3Policy.load(path, trust=True).env_fields
 
 
 def test_load_policy_acts_without_importing_torch():
@@ -73,7 +74,10 @@ def test_a_model_numpy_cannot_run_keeps_acting_through_torch(tmp_path):
     write_meta(path, {"algorithm": "ppo"}, elu)
     with zipfile.ZipFile(path) as zf:
         assert ACTOR_ENTRY not in zf.namelist()
-    policy = load_model_policy(path)
+    # its activation is a class, which SB3 keeps only as a pickle: trusted files only
+    with pytest.raises(UntrustedModelError, match="--trust-model"):
+        load_model_policy(path)
+    policy = load_model_policy(path, trust=True)
     assert isinstance(policy, SB3Policy)
     tanh = PPO("MlpPolicy", env, n_steps=8, batch_size=8, policy_kwargs={"net_arch": [8]},
                device="cpu")
@@ -111,7 +115,7 @@ def test_the_numpy_actor_round_trips_and_refuses_layers_that_do_not_chain():
 def test_loading_to_act_builds_no_optimizer():
     code = ("import sys; from boids_env.policies.sb3_policy import SB3Policy; "
             "from boids_env.policies.registry import LEARNED_MODEL; "
-            "p = SB3Policy.load(LEARNED_MODEL); import numpy as np; "
+            "p = SB3Policy.load(LEARNED_MODEL, trust=True); import numpy as np; "
             "p.act_batch(np.zeros((3, p.obs_size), np.float32)); "
             "print('torch._dynamo' in sys.modules, type(p.model.policy.optimizer).__name__)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -150,6 +154,9 @@ def test_the_shipped_models_need_no_extra_and_a_foreign_zip_names_the_train_extr
         raise ImportError("No module named 'torch'")
 
     monkeypatch.setattr(SB3Policy, "load", no_torch)
+    with pytest.raises(ImportError, match=r"foreign.zip.*boids-env\[train\]"):
+        load_model_policy(foreign, trust=True)
+    monkeypatch.setitem(sys.modules, "torch", None)  # its weights are read with torch
     with pytest.raises(ImportError, match=r"foreign.zip.*boids-env\[train\]"):
         load_model_policy(foreign)
     assert isinstance(load_model_policy(LEARNED_MODEL), MLPActor)  # numpy needs no torch

@@ -66,7 +66,7 @@ def test_boids_train_refuses_a_bad_config_before_writing(tmp_path, capsys):
 @pytest.mark.parametrize("entries, message", [
     ({"notes.txt": "x"}, "is not a Stable-Baselines3 checkpoint (its zip lacks data, "
                          "policy.pth)"),
-    ({"data": '{"num_timesteps": 5}', "policy.pth": "garbage"}, "cannot resume from"),
+    ({"data": '{"num_timesteps": 5}', "policy.pth": "garbage"}, "is not plain weights"),
 ])
 def test_a_checkpoint_that_cannot_resume_is_refused_before_writing(tmp_path, capsys, entries,
                                                                    message):
@@ -150,7 +150,8 @@ def test_boids_train_shows_its_bar_on_a_terminal_only(tmp_path, monkeypatch):
 
     asked = []
 
-    def train(config, out, *, resume=None, overwrite=False, progress_bar=False):
+    def train(config, out, *, resume=None, overwrite=False, progress_bar=False,
+              trust_model=False):
         asked.append(progress_bar)
         raise ValueError("stop here")
 

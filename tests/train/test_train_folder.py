@@ -80,7 +80,7 @@ def test_a_resume_goes_on_in_its_folder_and_never_tears_the_model(tmp_path, monk
     train(cfg, out)
     first = (out / "model.zip").read_bytes()
     checkpoint = out / "checkpoints" / "model_588_steps.zip"
-    done = SB3Policy.load(checkpoint).model.num_timesteps
+    done = SB3Policy.load(checkpoint, trust=True).model.num_timesteps
     assert done == 588
 
     # a resume that would train nothing is refused before anything is written

@@ -1,0 +1,109 @@
+"""``boids train --resume``: a checkpoint continued without running anything stored in it.
+
+SB3's ``load`` unpickles the objects its zips keep in ``data`` (the policy class, the spaces,
+the learning-rate schedule, ...), which runs any code they carry. A run's own checkpoint does
+not need them: the config rebuilds the same model (the algorithm, the MlpPolicy and its
+``net_arch``, the hyperparameters, the env copies), and what training learned is all in the
+state dicts (the policy's weights and the optimizer's moments) and the step counter. So by
+default the model is built from the config, the state dicts are read with torch's
+``weights_only`` loader (which refuses anything but tensors and plain containers), and the
+counters from the plain JSON of ``data``. A checkpoint whose network the config does not build
+is refused with a message naming ``--trust-model``, which loads it through SB3 (for files you
+trust). Either way the config's hyperparameters apply, as ``config.json`` says.
+"""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from pathlib import Path
+from typing import Any
+
+from boids_env.policies.sb3_zip import UntrustedModelError, read_plain_data
+from boids_env.train.config import TrainConfig
+
+COUNTERS = ("num_timesteps", "_n_updates", "_episode_num")
+"""Plain integers of ``data`` a resumed run carries on (the step count sets what is left to
+train; the others are logged)."""
+
+
+def load_checkpoint(path: str | Path, config: TrainConfig, env: Any, device: str,
+                    tensorboard_log: str, verbose: int = 0, trust: bool = False) -> Any:
+    """The SB3 model of ``config`` on ``env`` with the checkpoint's weights, optimizer state
+    and step count (see the module's docstring); ``trust`` loads it through SB3's own load,
+    which unpickles the objects stored in the zip, with the config's hyperparameters."""
+    from stable_baselines3.common.utils import get_device
+
+    from boids_env.policies.sb3_policy import algorithm_class
+
+    cls = algorithm_class(config.algorithm)
+    kwargs = config.algorithm_kwargs()
+    if trust:
+        kwargs.pop("policy_kwargs")  # SB3 refuses ones that differ from the saved network
+        return cls.load(path, env=env, device=device, tensorboard_log=tensorboard_log,
+                        **kwargs)
+    counters = _counters(path)
+    model = cls("MlpPolicy", env, device=device, verbose=verbose,
+                tensorboard_log=tensorboard_log, **kwargs)
+    names, variables = model._get_torch_save_params()
+    where = get_device(device)
+    states = {name: _weights(path, f"{name}.pth", where) for name in names}
+    try:
+        model.set_parameters(states, exact_match=True, device=device)
+    except (RuntimeError, ValueError, KeyError, IndexError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise UntrustedModelError(path, f"its weights do not fit the network this config "
+                                  f"builds ({config.algorithm}, net_arch "
+                                  f"{list(config.net_arch)}): {first}") from None
+    if variables:
+        saved = _weights(path, "pytorch_variables.pth", where)
+        if not isinstance(saved, dict):
+            raise ValueError(f"checkpoint {path}: pytorch_variables.pth is not a table")
+        for name in variables:
+            value = saved.get(name)
+            if value is not None:
+                _set_tensor(model, name, value)
+    for name, value in counters.items():
+        setattr(model, name, value)
+    return model
+
+
+def _counters(path: str | Path) -> dict[str, int]:
+    data = read_plain_data(path)
+    counters = {name: data[name] for name in COUNTERS if name in data}
+    bad = {k: v for k, v in counters.items() if type(v) is not int or v < 0}
+    if "num_timesteps" not in counters or bad:
+        raise ValueError(f"checkpoint {path}: its data has no step count (num_timesteps) or "
+                         f"holds a bad counter {bad}")
+    return counters
+
+
+def _weights(path: str | Path, entry: str, device: Any) -> Any:
+    """A ``.pth`` entry through torch's ``weights_only`` loader."""
+    import torch
+
+    try:
+        with zipfile.ZipFile(path) as zf:
+            raw = zf.read(entry)
+    except KeyError:
+        raise ValueError(f"checkpoint {path} has no {entry}") from None
+    try:
+        return torch.load(io.BytesIO(raw), map_location=device, weights_only=True)
+    except Exception as exc:  # the weights_only unpickler refuses anything but tensors
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"checkpoint {path}: its {entry} is not plain weights "
+                         f"({first})") from None
+
+
+def _set_tensor(model: Any, name: str, value: Any) -> None:
+    """``model.<name>.data = value`` for a dotted name, as SB3's load puts torch variables
+    back (the optimizer keeps the same tensor object)."""
+    import torch
+
+    if not isinstance(value, torch.Tensor):
+        raise ValueError(f"checkpoint variable {name} is not a tensor")
+    owner = model
+    *parents, last = name.split(".")
+    for part in parents:
+        owner = getattr(owner, part)
+    getattr(owner, last).data = value.data
