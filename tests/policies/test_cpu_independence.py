@@ -1,4 +1,5 @@
-"""A learned episode is the same bits whatever BLAS kernel and SIMD level the CPU gets: each
+"""A learned episode (and a Reynolds one in a scene with a lidar) is the same bits whatever
+BLAS kernel and SIMD level the CPU gets: each
 run is a fresh process with another OpenBLAS kernel (``OPENBLAS_CORETYPE``) or numpy's SIMD
 dispatch turned down (``NPY_DISABLE_CPU_FEATURES``), as a user's machine would pick them."""
 
@@ -22,7 +23,9 @@ disabled = [f for f in sys.argv[1].split() if f]
 assert not any(__cpu_features__[f] for f in disabled), "numpy ignored NPY_DISABLE_CPU_FEATURES"
 out = {}
 for spec, fields in (("learned", {}), ("learned", {"robots": 25, "obs_noise": 0.02,
-                                                    "max_cycles": 300})):
+                                                    "max_cycles": 300}),
+                     ("learned", {"scene": "pillars", "max_cycles": 300}),
+                     ("reynolds", {"scene": "lab", "lidar_rays": 16, "max_cycles": 300})):
     policy = load_policy(spec)
     env = BoidsEnv(**env_fields_for(policy, fields))
     result = run_episode(env, policy, 3, record=True)
