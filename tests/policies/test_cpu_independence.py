@@ -1,7 +1,7 @@
 """A learned episode (and a Reynolds one in a scene with a lidar) is the same bits whatever
-BLAS kernel and SIMD level the CPU gets: each
-run is a fresh process with another OpenBLAS kernel (``OPENBLAS_CORETYPE``) or numpy's SIMD
-dispatch turned down (``NPY_DISABLE_CPU_FEATURES``), as a user's machine would pick them."""
+BLAS kernel and SIMD level the CPU gets: each run is a fresh process with another OpenBLAS
+kernel (``OPENBLAS_CORETYPE``) or numpy's SIMD dispatch turned down
+(``NPY_DISABLE_CPU_FEATURES``), as a user's machine would pick them."""
 
 import json
 import os
