@@ -43,6 +43,11 @@ def env_fields_for(policy: Policy, fields: dict[str, Any] | None = None) -> dict
 def bind_policy(policy: Policy, env: BoidsEnv) -> None:
     """Tells a policy that reads the env's layout (``bind``, e.g. the Reynolds policy: static
     slots, range sensing, obstacle avoidance in scenes) which env it acts in."""
+    saved = getattr(policy, "observation_layout", None)
+    if saved is not None and saved != env.layout:
+        raise ValueError(f"the policy reads observations laid out as {list(saved.blocks)}, the "
+                         f"env gives {list(env.layout.blocks)}: make the env with the policy's "
+                         f"env_fields {getattr(policy, 'env_fields', {})}")
     bind = getattr(policy, "bind", None)
     if callable(bind):
         bind(env)

@@ -154,6 +154,28 @@ def load_model_policy(path: str | Path, device: str = "cpu", *, trust: bool = Fa
         raise FileNotFoundError(f"policy model file not found: {path}")
     meta = read_meta(path)  # a file that is not a zip is refused here, by name
     env_fields = _env_fields(path, meta.get("env_fields"))
+    layout = _layout(path, meta.get("observation_layout"))
+    policy = _load_model_policy(path, device, trust, env_fields)
+    if layout is not None:
+        policy.observation_layout = layout  # type: ignore[attr-defined]
+    return policy
+
+
+def _layout(path: Path, blocks: Any) -> Any:
+    """A model's saved observation layout (None for a model saved before layouts were)."""
+    if blocks is None:
+        return None
+    from boids_env.observations import ObservationLayout
+
+    try:
+        return ObservationLayout.from_blocks(blocks)
+    except ValueError as exc:
+        raise ValueError(f"SB3 model {path}: observation_layout in its {META_ENTRY}: {exc}"
+                         ) from None
+
+
+def _load_model_policy(path: Path, device: str, trust: bool, env_fields: dict[str, Any]
+                       ) -> BatchPolicy:
     if device == "cpu":
         with zipfile.ZipFile(path) as zf:
             try:

@@ -73,8 +73,15 @@ def make_vec_env(config: TrainConfig) -> FlockVecEnv:
 
 
 def model_meta(config: TrainConfig) -> dict[str, Any]:
-    """The ``boids.json`` entry written into every model zip of the run."""
+    """The ``boids.json`` entry written into every model zip of the run, with the observation
+    layout the model reads (its named blocks), so that an env built otherwise is refused by
+    name rather than fed the wrong numbers."""
+    from boids_env.config import EnvConfig
+    from boids_env.observations import layout_of
+
+    layout = layout_of(EnvConfig.from_kwargs(**config.env_fields))
     return {"algorithm": config.algorithm, "env_fields": dict(config.env_fields),
+            "observation_layout": [list(block) for block in layout.blocks],
             "train_config": config.to_dict()}
 
 

@@ -138,3 +138,25 @@ def test_read_zip_entry_stops_at_its_limit(tmp_path):
             read_zip_entry(zf, "x", 2 << 20)
         with pytest.raises(KeyError):
             read_zip_entry(zf, "missing", 10)
+
+
+def test_a_saved_observation_layout_is_checked_against_the_env(tmp_path):
+    from boids_env import EnvConfig, parallel_env
+    from boids_env.eval.episode import env_fields_for, run_episode
+    from boids_env.observations import layout_of
+
+    path = model_copy(tmp_path)
+    meta = read_meta(path)
+    layout = layout_of(EnvConfig.from_kwargs(**meta["env_fields"]))
+    assert [b for b, _ in layout.blocks][-1] == "static", "the shipped model reads a wall slot"
+    write_meta(path, {**meta, "observation_layout": [list(b) for b in layout.blocks]})
+    policy = load_model_policy(path)
+    assert policy.observation_layout == layout
+    fields = env_fields_for(policy, {"max_cycles": 5})
+    assert run_episode(parallel_env(**fields), policy, seed=0).metrics["steps"] == 5
+    wrong = {**fields, "sense_walls": False, "lidar_rays": 3}  # the same size, other blocks
+    with pytest.raises(ValueError, match=r"laid out as .*static.* the env gives .*lidar"):
+        run_episode(parallel_env(**wrong), policy, seed=0)
+    write_meta(path, {**meta, "observation_layout": [["own_velocity", 3]]})
+    with pytest.raises(ValueError, match="observation_layout in its boids.json"):
+        load_model_policy(path)

@@ -36,6 +36,8 @@ def test_model_zip_carries_metadata_and_loads_as_a_policy(tmp_path):
     path = train(TrainConfig(**{**TINY, "eval_every": 600, "checkpoint_every": 600}), tmp_path)
     meta = read_meta(path)
     assert meta["algorithm"] == "ppo" and meta["env_fields"]["neighbours"] == 4
+    assert meta["observation_layout"] == [["own_velocity", 2], ["leader_position", 2],
+                                          ["leader_velocity", 2], ["neighbours", 20]]
     assert (tmp_path / "best_model.zip").is_file()
     assert len(list((tmp_path / "checkpoints").glob("model_*_steps.zip"))) >= 1
     evals = (tmp_path / "evaluations.csv").read_text().splitlines()
