@@ -158,5 +158,5 @@ def test_a_saved_observation_layout_is_checked_against_the_env(tmp_path):
     with pytest.raises(ValueError, match=r"laid out as .*static.* the env gives .*lidar"):
         run_episode(parallel_env(**wrong), policy, seed=0)
     write_meta(path, {**meta, "observation_layout": [["own_velocity", 3]]})
-    with pytest.raises(ValueError, match="observation_layout in its boids.json"):
+    with pytest.raises(ValueError, match=r"observation_layout in its boids\.json"):
         load_model_policy(path)
