@@ -204,6 +204,13 @@ class MetricsConfig:
     · dt per step). Not in the study: the cohesion flag alone tells a follower too far to get
     back soon nothing about getting closer, so it trades the flag for alignment; this dense
     term pays for closing in. 0 (off) under both rewards."""
+    reward_intrusion: float = 0.0
+    """Weight of the penalty while a follower's centre is within ``intrusion_distance`` of
+    the leader (a person's personal space) or of a pedestrian (−w · dt per step). Not in the
+    study; 0 (off) under both rewards."""
+    intrusion_distance: float = 1.2
+    """Centre distance (m) under which ``reward_intrusion`` applies: the outer edge of Hall's
+    personal zone (1.2 m)."""
     safety_distance: float = 0.3
     """Centre distance (m) under which ``reward_proximity`` applies. Not in the study."""
     wall_distance: float = 0.15
@@ -221,7 +228,8 @@ class MetricsConfig:
                      unit="degrees"))
         if not isinstance(self.wrap_alignment, bool):
             raise ValueError(f"wrap_alignment must be True or False, got {self.wrap_alignment!r}")
-        for name in ("reward_separation", "reward_cohesion", "reward_alignment", "reward_gap"):
+        for name in ("reward_separation", "reward_cohesion", "reward_alignment", "reward_gap",
+                     "reward_intrusion"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
         if self.separation_threshold >= self.cohesion_threshold:
             raise ValueError(f"separation_threshold ({self.separation_threshold} m) must be "
@@ -231,6 +239,8 @@ class MetricsConfig:
         for name in SAFE_WEIGHTS:
             if getattr(self, name) is not None:
                 _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
+        _set(self, "intrusion_distance", _number("intrusion_distance", self.intrusion_distance,
+                                                 0.0, 10, lo_open=True, unit="m"))
         _set(self, "safety_distance", _number("safety_distance", self.safety_distance, 0.0, 10,
                                               lo_open=True, unit="m"))
         _set(self, "wall_distance", _number("wall_distance", self.wall_distance, 0.0, 10,
@@ -368,7 +378,29 @@ def fastest_speed(config: EnvConfig) -> tuple[float, str]:
     else:
         leader = (sc.leader_speed, f"leader_speed={sc.leader_speed:g} m/s")
     follower = (config.world.max_speed, f"max_speed={config.world.max_speed:g} m/s")
-    return max(follower, leader)
+    return max(follower, leader, *_people_speeds(sc))
+
+
+def _people_speeds(sc: ScenarioConfig) -> list[tuple[float, str]]:
+    """The fastest the person and the crowd move (m/s), and what sets it."""
+    from boids_env.world.people import CROWD_SPEED_SPREAD, GAIT_RANGE
+
+    out = []
+    if sc.leader == "person" and sc.path != "external":
+        out.append((sc.leader_speed * GAIT_RANGE[1],
+                    f"a person at leader_speed={sc.leader_speed:g} m/s × {GAIT_RANGE[1]:g} "
+                    f"(its fastest gait)"))
+    if sc.leader == "trajectory":
+        from boids_env.world.person import max_walk_speed, read_walk
+
+        assert sc.leader_trajectory is not None
+        fastest = max_walk_speed(*read_walk(sc.leader_trajectory))
+        out.append((fastest, f"the walk {sc.leader_trajectory} ({fastest:.3g} m/s at most)"))
+    if sc.crowd:
+        out.append((sc.crowd_speed * CROWD_SPEED_SPREAD[1],
+                    f"pedestrians at crowd_speed={sc.crowd_speed:g} m/s × "
+                    f"{CROWD_SPEED_SPREAD[1]:g}"))
+    return out
 
 
 MAX_DRIVE_ACCELERATION = 100.0
@@ -446,17 +478,21 @@ def _check_scene(config: EnvConfig) -> None:
     scene = config.scene
     path = preview_path(sc, w.dt)
     cells = initial_positions(sc, None, layout_heading(sc, w.scene, path))
-    need = w.robot_radius + sc.init_jitter * math.sqrt(2)
+    need = np.full(len(cells), w.robot_radius + sc.init_jitter * math.sqrt(2))
+    if sc.leader != "robot":
+        need[0] = sc.person_radius  # a person (or a walk) starts exactly at its start
     clear = scene.clearance(cells)
     bad = np.flatnonzero(clear <= need)
     if bad.size:
         k = int(bad[0])
         who = "the leader" if k == 0 else f"follower {k}"
+        rule = ("person_radius" if k == 0 and sc.leader != "robot"
+                else "robot_radius + init_jitter·√2")
         raise ValueError(
             f"the start does not fit scene {scene.name!r}: {who} would start at "
             f"({cells[k][0]:.2f}, {cells[k][1]:.2f}), {max(clear[k], 0.0):.3f} m from "
-            f"{scene.nearest_name(cells[k])}; it needs more than {need:.3f} m (robot_radius + "
-            f"init_jitter·√2): change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, "
+            f"{scene.nearest_name(cells[k])}; it needs more than {need[k]:.3f} m ({rule}): "
+            f"change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, "
             f"layout_spacing ({sc.layout_spacing:g} m) or robots ({sc.robots})")
     if path is None:
         return
