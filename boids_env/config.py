@@ -127,6 +127,11 @@ class ObservationConfig:
     Opt-in."""
     lidar_range: float = 3.0
     """Range (m) of the range sensor."""
+    pedestrian_slots: int | None = None
+    """Pedestrian slots: the nearest pedestrians within ``pedestrian_range`` (relative
+    position, velocity, valid flag each, as a neighbour slot). None: 4 with a crowd, else 0."""
+    pedestrian_range: float = 3.0
+    """Range (m) of the pedestrian slots."""
     frame: str = "world"
     """Frame of observations and actions, one of FRAMES: ``world`` (the study's) or
     ``leader`` (x along the leader's heading, y to its left; opt-in, for policies that should
@@ -157,6 +162,11 @@ class ObservationConfig:
         _set(self, "lidar_rays", _integer("lidar_rays", self.lidar_rays, 0, 1024))
         _set(self, "lidar_range", _number("lidar_range", self.lidar_range, 0.0, 100,
                                           lo_open=True, unit="m"))
+        if self.pedestrian_slots is not None:
+            _set(self, "pedestrian_slots", _integer("pedestrian_slots", self.pedestrian_slots,
+                                                    0, 64))
+        _set(self, "pedestrian_range", _number("pedestrian_range", self.pedestrian_range, 0.0,
+                                               100, lo_open=True, unit="m"))
         _set(self, "relative_actions", _flag("relative_actions", self.relative_actions))
         if self.frame not in FRAMES:
             raise ValueError(f"frame must be one of {FRAMES}, got {self.frame!r}")
@@ -328,6 +338,15 @@ class EnvConfig:
             return 1
         return 0 if self.world.scene == "arena" else DEFAULT_STATIC_SLOTS
 
+    @property
+    def pedestrian_slots(self) -> int:
+        """The number of pedestrian slots in the observations (``pedestrian_slots``
+        resolved: see :class:`ObservationConfig`)."""
+        slots = self.observation.pedestrian_slots
+        if slots is not None:
+            return slots
+        return DEFAULT_PEDESTRIAN_SLOTS if self.scenario.crowd else 0
+
     def to_dict(self) -> dict[str, dict[str, Any]]:
         """A JSON-ready nested dict (tuples become lists)."""
         return dataclasses.asdict(self)
@@ -350,6 +369,8 @@ class EnvConfig:
         return cls.from_kwargs(**flat)
 
 
+DEFAULT_PEDESTRIAN_SLOTS = 4
+"""Pedestrian slots in the observations with a crowd (``pedestrian_slots``)."""
 DEFAULT_STATIC_SLOTS = 4
 """Static slots in the observations of any scene but the study's arena (``static_slots``)."""
 
@@ -557,6 +578,11 @@ class ReynoldsParams:
     obstacle_lookahead: float = 1.0
     """Look-ahead time (s): approaching an obstacle at speed u counts as being u × lookahead
     closer to it, so a fast follower starts braking earlier."""
+    personal_space: float = 0.0
+    """Radius (m) of a person's personal space the leader term keeps clear (the
+    proxemics-aware variant, preset ``proxemic``: 1.2 m, Hall's personal zone): the leader
+    term seeks the circle of this radius around the leader and pushes followers sideways out
+    of its path ahead. 0: the study's leader term (seek the leader's centre)."""
 
     def __post_init__(self) -> None:
         if self.obstacle_avoidance is not None:
@@ -567,6 +593,8 @@ class ReynoldsParams:
                                                 0.0, 10, lo_open=True, unit="m"))
         _set(self, "obstacle_lookahead", _number("obstacle_lookahead", self.obstacle_lookahead,
                                                  0.0, 60, unit="s"))
+        _set(self, "personal_space", _number("personal_space", self.personal_space, 0.0, 5.0,
+                                             unit="m"))
         for name in ("separation_weight", "cohesion_weight", "alignment_weight",
                      "leader_weight"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 100))
@@ -588,6 +616,8 @@ PRESETS: dict[str, ReynoldsParams] = {
     "paper": ReynoldsParams(),
     # The defaults of the original code (boids_ros / sphero_formation).
     "boids_ros": ReynoldsParams(horizon=0.75, desired_separation=0.45),
+    # Beyond the study: the proxemics-aware leader term for following a person.
+    "proxemic": ReynoldsParams(personal_space=1.2),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
 

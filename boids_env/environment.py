@@ -17,7 +17,7 @@ from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from boids_env import metrics, proxemics
 from boids_env.config import EnvConfig
-from boids_env.observations import Observer
+from boids_env.observations import Crowd, Observer
 from boids_env.vectors import as_velocities, clip_speed
 from boids_env.world import scenario
 from boids_env.world.leader import ExternalLeader, Leader, make_leader, preview_path, redraw_clear
@@ -404,8 +404,10 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         return arr
 
     def _observe(self) -> npt.NDArray[np.float32]:
-        assert self._world is not None
-        obs = self._observer(self._world.positions, self._world.velocities)
+        world = self._world
+        assert world is not None
+        crowd = Crowd(world.pedestrian_positions, world.pedestrian_velocities) if world.p else None
+        obs = self._observer(world.positions, world.velocities, crowd)
         return obs if self._realism is None else self._realism.observations(obs)
 
     # -------------------------------------------------------------------------- queries
