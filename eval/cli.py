@@ -12,6 +12,7 @@ from boids_env.config import PATHS, PRESETS
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
 from boids_env.world.realism import REALISMS
+from boids_env.world.scenario import LEADERS
 
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
                "shipped PPO followers), learned-study (PPO on the study's reward alone), an "
@@ -84,6 +85,16 @@ def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) ->
                    help="where the leader starts (m; the scene's, or 0,0)")
     p.add_argument("--start-heading", type=float, default=None, metavar="DEG",
                    help="direction the leader faces at the start; the grid lies behind it")
+    p.add_argument("--leader", choices=LEADERS, default=None,
+                   help="who leads: robot (the study's), person (a pedestrian walking the path "
+                   "with JuPedSim, people extra; with --path external, walked by hand) or "
+                   "trajectory (a recorded walk, --leader-trajectory)")
+    p.add_argument("--leader-trajectory", default=None, metavar="CSV",
+                   help="a recorded walk to replay as the leader: a CSV of t,x,y (s, m) on the "
+                   "episode's clock, or doorway_walk (shipped); implies --leader trajectory")
+    p.add_argument("--crowd", type=int, default=None, metavar="N",
+                   help="N pedestrians walking to random goals through the scene (people "
+                   "extra; 0)")
     p.add_argument("--set", type=parse_setting, action="append", default=[],
                    metavar="FIELD=VALUE", help="any env config field (e.g. lidar_rays=16, "
                    "static_slots=2, obs_noise=0.02); repeatable")
@@ -167,9 +178,12 @@ def _policy_extras(specs: list[str]) -> list[str]:
 
 def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
     fields: dict[str, Any] = {}
-    for name in ("robots", "leader_speed", "path", "scene", "start", "start_heading"):
+    for name in ("robots", "leader_speed", "path", "scene", "start", "start_heading", "leader",
+                 "leader_trajectory", "crowd"):
         if getattr(args, name) is not None:
             fields[name] = getattr(args, name)
+    if args.leader_trajectory is not None:
+        fields.setdefault("leader", "trajectory")
     if args.map is not None:
         if args.scene is not None:
             raise ValueError("give --scene or --map, not both (a map is a scene)")
@@ -188,6 +202,12 @@ def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
     if args.realism is not None:
         fields["realism"] = args.realism
     return _with_settings(fields, args.set)
+
+
+def _needs_people(fields: dict[str, Any]) -> bool:
+    """Whether the pedestrian model runs: a person walking a path or a crowd."""
+    walking = fields.get("leader") == "person" and fields.get("path") != "external"
+    return walking or bool(fields.get("crowd"))
 
 
 def _with_settings(fields: dict[str, Any], settings: list[tuple[str, Any]]) -> dict[str, Any]:
@@ -225,6 +245,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 0
     needs += ["render"] if args.video else []
     needs += ["ros"] if args.bag or args.mcap else []
+    needs += ["people"] if _needs_people(fields) else []
     require(*needs, purpose="boids run" + " --video" * bool(args.video) + " --bag" * args.bag
             + " --mcap" * args.mcap + (f" --policy {args.policy}" if "train" in needs else ""))
     from boids_env.eval.run import run

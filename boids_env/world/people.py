@@ -62,11 +62,11 @@ PLACEMENT_TRIES = 10_000
 
 
 def _require_jupedsim() -> Any:
-    try:
-        import jupedsim
-    except ImportError:  # pragma: no cover - the people extra is installed in CI
-        raise ImportError("leader='person' and crowd > 0 need JuPedSim: pip install "
-                          "'boids-env[people]'") from None
+    from boids_env.extras import require
+
+    require("people", purpose="leader='person' (walking its path) and crowd > 0")
+    import jupedsim
+
     return jupedsim
 
 

@@ -25,6 +25,9 @@ if TYPE_CHECKING:
 
 FloatArray = npt.NDArray[np.float64]
 
+WALKS = {"doorway_walk": Path(__file__).parent / "data" / "doorway_walk.csv"}
+"""Walks shipped with the package, by name (recorded with the pedestrian model: see the
+README)."""
 WALK_MAX_BYTES = 10_000_000
 """A walk file larger than this (10 MB) is refused."""
 WALK_MAX_ROWS = 200_000
@@ -130,13 +133,13 @@ def max_walk_speed(times: FloatArray, points: FloatArray) -> float:
 
 def read_walk(path: str | Path) -> tuple[FloatArray, FloatArray]:
     """A walk file's ``(times (M,), points (M, 2))``: a CSV with columns ``t, x, y`` (s, m),
-    an optional header line, one sample per row.
+    an optional header line, one sample per row (or a shipped walk by name, :data:`WALKS`).
 
     The file is untrusted: at most :data:`WALK_MAX_BYTES` and :data:`WALK_MAX_ROWS` rows, finite
     numbers within ±:data:`WALK_MAX_COORDINATE`, times >= 0 and strictly increasing, at least
     two rows; anything else raises ``ValueError`` naming the file and the row.
     """
-    p = Path(path)
+    p = WALKS.get(str(path), Path(path))
     try:
         stat = p.stat()
     except OSError as exc:

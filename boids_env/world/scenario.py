@@ -175,10 +175,11 @@ class ScenarioConfig:
                              f"of t,x,y, got {self.leader_trajectory!r}")
         from pathlib import Path
 
-        from boids_env.world.person import read_walk
+        from boids_env.world.person import WALKS, read_walk
 
         _, points = read_walk(self.leader_trajectory)
-        _set(self, "leader_trajectory", str(Path(self.leader_trajectory).resolve()))
+        if self.leader_trajectory not in WALKS:
+            _set(self, "leader_trajectory", str(Path(self.leader_trajectory).resolve()))
         _set(self, "start", (float(points[0][0]), float(points[0][1])))
         if self.start_heading is None:
             steps = points[1:] - points[0]

@@ -224,13 +224,16 @@ class World:
         w = self._write_velocities
         w[: self.n] = self.velocities  # unchanged: batch writes every body's velocity
         w[self.n : 2 * self.n] = self.commanded if executed is None else executed
+        # People walk as told from the period's first substep (chipmunk moves a body by its
+        # velocity before its joints act, so a drive lags a substep): body and control body
+        # both get the velocity, the drive then only holds it against robots.
         if self.person_leader:
-            w[self.n] = self.commanded[0]  # a person walks as told: no robot realism
+            w[0] = w[self.n] = self.commanded[0]  # and no robot realism for a person
         if self.p:
             n2, p = 2 * self.n, self.p
-            w[n2 : n2 + p] = self.pedestrian_velocities
-            w[n2 + p : n2 + 2 * p] = (0.0 if pedestrian_velocities is None
-                                      else pedestrian_velocities)
+            walk = 0.0 if pedestrian_velocities is None else pedestrian_velocities
+            w[n2 : n2 + p] = walk
+            w[n2 + p : n2 + 2 * p] = walk
         write = _buffers()[1]
         write.set_float_buf(w.reshape(-1))
         batch.set_space_bodies(self.space, batch.BodyFields.VELOCITY, write)
