@@ -485,9 +485,11 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         m = self.episode_metrics()
         status = (f"t = {m['duration']:5.1f} s   V_sep {m['V_sep']:.3f}   V_coh {m['V_coh']:.3f}"
                   f"   V_align {m['V_align']:.3f}")
+        sc = self.episode_config.scenario
         frame = Frame(world.positions, world.steps, self.episode_config.world.robot_radius,
                       status, self.episode_config.observation.horizon, dict(self.overlays),
-                      tuple(self.hud_text))
+                      tuple(self.hud_text), None if sc.leader == "robot" else sc.person_radius,
+                      world.pedestrian_positions if world.p else None, sc.person_radius)
         return self._renderer.draw(frame)
 
     def close(self) -> None:

@@ -380,6 +380,9 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
 
         out.update(person_metrics(pos, np.asarray(velocities, dtype=float)[:, 0], robot_radius,
                                   person_radius))
+        # the leader's contacts by the person's body, not a robot's
+        out["contacts_leader"] = float(out["person_contacts"])  # type: ignore[arg-type]
+        out["collisions"] = int(out["contacts_follower"] + out["contacts_leader"])  # type: ignore[operator]
     if pedestrians is not None and np.asarray(pedestrians).shape[1]:
         from boids_env.proxemics import crowd_metrics
 

@@ -211,8 +211,25 @@ SCENES = Suite("scenes", tuple(
 the path, a door, a corridor loop, a pillar field and a lab's map. The Reynolds policy
 avoids obstacles in all but the arena."""
 
+PERSON_BASE = {"scene": "doorway", "leader": "person", "robots": 13, "leader_speed": 0.5}
+"""The ``person`` suite's controlled values: a person walking the doorway scene's path at the
+robots' top speed (0.5 m/s preferred), 13 robots, no crowd."""
+
+PERSON = Suite("person", tuple(
+    _sweep("speed", "leader_speed", [(s, {"leader_speed": float(s)})
+                                     for s in ("0.4", "0.5", "0.6", "0.75")], PERSON_BASE)
+    + _sweep("group_size", "robots", [(n, {"robots": int(n)}) for n in ("7", "13", "19")],
+             PERSON_BASE)
+    + _sweep("crowd", "crowd", [(n, {"crowd": int(n)}) for n in ("0", "5", "10", "20")],
+             PERSON_BASE)))
+"""The study's questions with a person leading (the ``people`` extra): the person's preferred
+walking speed against the robots' top speed of 0.5 m/s (0.8×, 1×, 1.2×, 1.5×: the study's
+RQ1 trade-off), the group size, and the crowd's density (0, 5, 10, 20 pedestrians in the
+doorway scene's 71.5 m² of floor: 0 to 0.28 per m²). Run it for ``reynolds`` and
+``reynolds@proxemic``."""
+
 SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION,
-          "scenes": SCENES}
+          "scenes": SCENES, "person": PERSON}
 
 
 def load_suite(spec: str | Path) -> Suite:
