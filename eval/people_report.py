@@ -45,13 +45,14 @@ def trade_offs(table: pd.DataFrame) -> pd.DataFrame:
     level (in the suite's order), the change, and the robust one-way test across all
     levels (ANOVA, Welch or Kruskal-Wallis as :func:`~boids_env.eval.stats.one_way` picks)."""
     table = with_personal_space(table)
-    rows = []
-    for (policy, group), g in table.groupby(["policy", "group"], sort=False):
-        levels = list(dict.fromkeys(g["level"]))
-        if len(levels) < 2:
-            continue
+    out = []
+    for (policy, group), rows in table.groupby(["policy", "group"], sort=False):
         for metric, words in TRADE_OFF_METRICS:
-            if metric not in g or g[metric].isna().all():
+            if metric not in rows:
+                continue
+            g = rows[rows[metric].notna()]  # a crowd metric has no value without a crowd
+            levels = list(dict.fromkeys(g["level"]))
+            if len(levels) < 2:
                 continue
             try:
                 test = one_way(group_values(g, metric))
@@ -59,12 +60,12 @@ def trade_offs(table: pd.DataFrame) -> pd.DataFrame:
                 continue
             low = float(g[g["level"] == levels[0]][metric].mean())
             high = float(g[g["level"] == levels[-1]][metric].mean())
-            rows.append({"policy": policy, "group": group, "factor": g["factor"].iloc[0],
+            out.append({"policy": policy, "group": group, "factor": g["factor"].iloc[0],
                          "metric": metric, "words": words, "first_level": levels[0],
                          "last_level": levels[-1], "first_mean": low, "last_mean": high,
                          "test": test["robust_test"], "p": test["robust_p"],
                          "significant": bool(test["robust_p"] < ALPHA)})
-    return pd.DataFrame(rows)
+    return pd.DataFrame(out)
 
 
 def statement(row: pd.Series) -> str:
@@ -84,6 +85,8 @@ def _n(value: float) -> str:
 
 
 def _p(p: float) -> str:
+    if math.isnan(p):
+        return "n/a"
     return f"{p:.2g}" if p >= 1e-4 else "< 1e-4"
 
 

@@ -27,3 +27,14 @@ def test_trade_offs_state_what_changes_and_what_does_not():
     assert not inside["significant"]
     assert "no significant effect" in statement(inside)
     assert "V_sep" in found.index and not found.loc["V_sep"]["significant"]
+
+
+def test_a_crowd_metric_is_compared_over_the_levels_that_have_a_crowd():
+    rows = []
+    for level, contacts in (("0", (None, None)), ("5", (1.0, 2.0)), ("20", (10.0, 12.0))):
+        for seed, c in enumerate(contacts):
+            rows.append({"policy": "p", "group": "crowd", "factor": "crowd", "level": level,
+                         "seed": seed, "pedestrian_contacts": c})
+    found = trade_offs(pd.DataFrame(rows)).set_index("metric").loc["pedestrian_contacts"]
+    assert (found["first_level"], found["first_mean"]) == ("5", 1.5)
+    assert found["significant"] and "rises from 1.5 at crowd 5 to 11 at 20" in statement(found)
