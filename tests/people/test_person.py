@@ -185,3 +185,21 @@ def test_crowd_is_not_a_reset_option():
     with pytest.warns(UserWarning, match="ignores unknown option"):
         env.reset(seed=0, options={"crowd": 3})
     assert env._world.p == 0
+
+
+def test_a_person_walked_by_hand_moves_as_commanded():
+    # the live window's keyboard person: --leader person --path external
+    env = parallel_env(leader="person", path="external", robots=3, startup_time=0.0)
+    env.reset(seed=0)
+    env.set_leader_command([0.5, 0.0])
+    for _ in range(10):
+        env.step({a: np.zeros(2) for a in env.agents})
+    assert env.snapshot().positions[0] == pytest.approx([0.5, 0.0], abs=1e-9)
+    assert env._people is None  # no pedestrian model runs for a hand-walked person
+
+
+def test_ros_sim_refuses_a_walking_person():
+    from boids_env.eval.ros.sim import SimNode, SimOptions
+
+    with pytest.raises(ValueError, match="a walking person .* not supported"):
+        SimNode(SimOptions(env_fields={"leader": "person"}))
