@@ -201,5 +201,5 @@ def test_a_person_walked_by_hand_moves_as_commanded():
 def test_ros_sim_refuses_a_walking_person():
     from boids_env.eval.ros.sim import SimNode, SimOptions
 
-    with pytest.raises(ValueError, match="a walking person .* not supported"):
+    with pytest.raises(ValueError, match=r"a walking person .* not supported"):
         SimNode(SimOptions(env_fields={"leader": "person"}))
