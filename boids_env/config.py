@@ -412,7 +412,7 @@ def _people_speeds(sc: ScenarioConfig) -> list[tuple[float, str]]:
                     f"a person at leader_speed={sc.leader_speed:g} m/s × {GAIT_RANGE[1]:g} "
                     f"(its fastest gait)"))
     if sc.leader == "trajectory":
-        from boids_env.world.person import max_walk_speed, read_walk
+        from boids_env.world.walks import max_walk_speed, read_walk
 
         assert sc.leader_trajectory is not None
         fastest = max_walk_speed(*read_walk(sc.leader_trajectory))

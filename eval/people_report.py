@@ -7,6 +7,7 @@ a crowd (their proxemics columns are in the results table).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import pandas as pd
 
@@ -90,18 +91,20 @@ def _p(p: float) -> str:
     return f"{p:.2g}" if p >= 1e-4 else "< 1e-4"
 
 
-def person_section(table: pd.DataFrame, summary_table: object, csvs: dict[str, pd.DataFrame],
+def person_section(table: pd.DataFrame, summary_table: Callable[..., pd.DataFrame],
+                   md_table: Callable[[pd.DataFrame], str], csvs: dict[str, pd.DataFrame],
                    summary: list[str]) -> list[str]:
     """The report's Markdown for the person and the crowd; adds its CSVs and summary lines.
 
     Args:
         table: the results table.
         summary_table: the report's mean ± std table builder, ``f(table, metrics)``.
+        md_table: the report's Markdown table writer.
         csvs: the report's CSVs, by file name.
         summary: the report's summary lines.
     """
     keys = tuple(k for k in (*PERSON_KEYS, *CROWD_KEYS) if k in table)
-    csvs[PERSON_CSV] = summary_table(table, keys)  # type: ignore[operator]
+    csvs[PERSON_CSV] = summary_table(table, keys)
     found = trade_offs(table)
     csvs[TRADE_OFF_CSV] = found
     md = ["## A person as the leader: proxemics per case", "",
@@ -110,7 +113,7 @@ def person_section(table: pd.DataFrame, summary_table: object, csvs: dict[str, p
           "(onsets), the closest robot-person centres (m), time a robot is in the person's "
           "path (the strip its body sweeps in the next 2 s) and, with a crowd, time within "
           "0.45 m / 1.2 m of a pedestrian and robot-pedestrian contacts. Mean ± population "
-          "std over seeds.", "", _md(csvs[PERSON_CSV]), ""]
+          "std over seeds.", "", md_table(csvs[PERSON_CSV]), ""]
     md += ["## A person as the leader: the trade-offs", "",
            f"For each factor, each metric from its first to its last level, with the robust "
            f"one-way test across all its levels (α = {ALPHA}).", ""]
@@ -125,9 +128,3 @@ def person_section(table: pd.DataFrame, summary_table: object, csvs: dict[str, p
     if lines:
         summary += ["Person following, significant trade-offs:", "", *lines, ""]
     return md
-
-
-def _md(df: pd.DataFrame) -> str:
-    from boids_env.eval.report import _md_table
-
-    return _md_table(df)

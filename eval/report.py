@@ -262,7 +262,7 @@ def build_report(out: str | Path) -> Path:
            "`wall_fraction`: time some robot touches a wall; distances in m.", "",
            _md_table(csvs["safety.csv"]), ""]
     if has_people(table):
-        md += person_section(table, summary_table, csvs, summary)
+        md += person_section(table, summary_table, _md_table, csvs, summary)
     if len(policies) > 1:
         md += _comparison_section(table, policies, csvs, summary)
     md += _stats_section(anova, tukey, rule)

@@ -20,7 +20,8 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
                        "flock; writes model.zip, config.json, evaluations.csv, checkpoints/ "
                        "and tb/ (TensorBoard) to --out.")
     p.add_argument("--config", help="a TOML file of TrainConfig fields, or the name of a "
-                   "shipped recipe (ppo_safe, ppo_safe_stage2, ppo_study); flags override it")
+                   "shipped recipe (ppo_safe, ppo_safe_stage2, ppo_study, ppo_person); flags "
+                   "override it")
     p.add_argument("--out", default="runs/train", help="output folder (runs/train)")
     p.add_argument("--algorithm", choices=("ppo", "sac"), default=None)
     p.add_argument("--timesteps", type=int, default=None, dest="total_timesteps",

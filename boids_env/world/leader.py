@@ -260,7 +260,7 @@ def preview_path(scenario: ScenarioConfig, dt: float | None = None) -> Vec | Non
     random or external path; a recorded walk's samples for ``leader="trajectory"`` (a person
     walks the path's corners: its path is the robot's)."""
     if scenario.leader == "trajectory":
-        from boids_env.world.person import read_walk
+        from boids_env.world.walks import read_walk
 
         assert scenario.leader_trajectory is not None
         return np.array(read_walk(scenario.leader_trajectory)[1])

@@ -175,7 +175,7 @@ class ScenarioConfig:
                              f"of t,x,y, got {self.leader_trajectory!r}")
         from pathlib import Path
 
-        from boids_env.world.person import WALKS, read_walk
+        from boids_env.world.walks import WALKS, read_walk
 
         _, points = read_walk(self.leader_trajectory)
         if self.leader_trajectory not in WALKS:

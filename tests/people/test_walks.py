@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from boids_env import EnvConfig, parallel_env
-from boids_env.world.person import WALKS, read_walk
+from boids_env.world.walks import WALKS, read_walk
 
 
 def write(tmp_path, text, name="walk.csv"):
@@ -61,9 +61,9 @@ def test_bad_walk_files_are_refused_naming_the_row(tmp_path, text, message):
 
 
 def test_walk_files_are_bounded(tmp_path, monkeypatch):
-    from boids_env.world import person
+    from boids_env.world import walks
 
-    monkeypatch.setattr(person, "WALK_MAX_BYTES", 50)
+    monkeypatch.setattr(walks, "WALK_MAX_BYTES", 50)
     with pytest.raises(ValueError, match=r"more than the 50 allowed"):
         read_walk(write(tmp_path, WALK * 3, "big.csv"))
     with pytest.raises(ValueError, match=r"cannot be read"):
