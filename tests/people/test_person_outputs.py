@@ -84,3 +84,25 @@ def test_the_person_suite_asks_the_studys_questions():
     assert speeds == [0.4, 0.5, 0.6, 0.75]
     assert all(c.env["leader"] == "person" and c.env["scene"] == "doorway"
                for c in suite.cases)
+
+
+def test_boids_run_takes_the_person_flags_and_set(tmp_path, capsys):
+    import json
+
+    from boids_env.train.cli import main
+
+    short = ["--robots", "4", "--max-cycles", "15", "--scene", "doorway"]
+    assert main(["run", "--leader-trajectory", "doorway_walk", *short,
+                 "--out", str(tmp_path / "walk")]) == 0
+    config = json.loads((tmp_path / "walk" / "config.json").read_text())
+    assert config["env"]["scenario"]["leader"] == "trajectory"
+    assert main(["run", "--leader", "person", "--crowd", "2", *short,
+                 "--out", str(tmp_path / "person")]) == 0
+    assert "pedestrian_contacts" in capsys.readouterr().out
+    assert main(["run", "--set", "leader=person", "--set", "crowd=1", *short,
+                 "--out", str(tmp_path / "set")]) == 0
+    metrics = json.loads((tmp_path / "set" / "metrics.json").read_text())
+    assert "intimate_fraction" in metrics and "pedestrian_contacts" in metrics
+    assert main(["run", "--leader", "person", "--set", "crowd=-1", *short,
+                 "--out", str(tmp_path / "bad")]) == 2
+    assert "crowd must be in [0, 500]" in capsys.readouterr().err
