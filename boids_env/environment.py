@@ -81,7 +81,16 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     | 4:6 | leader velocity | m/s | ±velocity_bound |
     | 6+5k : 11+5k | slot k: relative position, velocity, valid | m, m/s, 1 | ±horizon, ±vb, [0,1] |
 
-    Slots hold the robots within ``horizon`` (the leader included), nearest first.
+    Slots hold the robots within ``horizon`` (the leader included), nearest first. Opt-in
+    blocks follow (:attr:`layout`): static slots, lidar rays and, with a crowd, pedestrian
+    slots (relative position, velocity, valid flag of the nearest pedestrians).
+
+    ## A person as the leader (opt-in)
+    ``leader="person"``: robot 0 is a pedestrian walked by JuPedSim (the ``people`` extra)
+    to the corners of its path with a varying gait and pauses, a 0.22 m, 70 kg body the robots
+    cannot push; ``leader="trajectory"`` replays a recorded walk (``leader_trajectory``, a
+    CSV of t, x, y); ``crowd=N`` adds pedestrians walking to random goals. The episode's
+    metrics then include the proxemics of :mod:`boids_env.proxemics`.
 
     ## Rewards
     Per follower and step: −(w_sep·[sep] + w_coh·[coh] + w_ali·[ali]) · dt, the flags of

@@ -203,3 +203,21 @@ def test_ros_sim_refuses_a_walking_person():
 
     with pytest.raises(ValueError, match=r"a walking person .* not supported"):
         SimNode(SimOptions(env_fields={"leader": "person"}))
+
+
+def test_the_walkable_area_of_a_map_is_its_free_cells():
+    scene = load_scene("lab")
+    area = walkable_area(scene)
+    free = float((scene.grid.cells == 0).sum()) * scene.grid.resolution ** 2
+    # less the 5 mm contour capsules along the walls (and any free pocket cut off)
+    assert 0.99 * free < area.area <= free, (area.area, free)
+    occupied = np.argwhere(scene.grid.cells != 0)[0]
+    x0, y0, _ = scene.grid.origin
+    centre = (x0 + (occupied[1] + 0.5) * scene.grid.resolution,
+              y0 + (occupied[0] + 0.5) * scene.grid.resolution)
+    assert not area.contains(__import__("shapely").Point(*centre))
+
+
+def test_a_person_walks_the_lab_map():
+    _, pos, _ = rollout(steps=80, scene="lab", leader="person", robots=4)
+    assert np.hypot(*(pos[-1, 0] - pos[0, 0])) > 1.0, "the person walked off its start"
