@@ -210,8 +210,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self._leader = redraw_clear(sc, scene, wc.robot_radius, self._leader, self._rng,
                                         wc.dt)
         # the person and the crowd draw from the stream only when asked for: defaults unchanged
-        self._leader, self._people = make_person(sc, scene, self._leader,
-                                                 self._initial_positions, self._rng, wc.dt)
+        try:
+            self._leader, self._people = make_person(sc, scene, self._leader,
+                                                     self._initial_positions, self._rng, wc.dt)
+        except ValueError:  # no room for the crowd: no half-made episode to step on
+            self._world, self.agents = None, []
+            raise
         self._world = self._new_world()
         self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
         self._tail_steps = round(sc.tail_time / wc.dt)

@@ -57,7 +57,7 @@ STUCK_DISTANCE = 0.2
 """See :data:`STUCK_TIME` (m)."""
 GIVE_WAY_RADIUS = 3.0
 """A pedestrian giving way picks its new goal within this distance (m)."""
-PLACEMENT_TRIES = 10_000
+PLACEMENT_TRIES = 2_000
 """Random start or goal draws tried before giving up."""
 
 

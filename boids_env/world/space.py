@@ -33,12 +33,9 @@ PERSON_MASS = 70.0
 """Mass (kg) of a person's body (the leader person and every pedestrian): a 0.18 kg robot
 pushing it with its 1 N drive moves it by micrometres."""
 PERSON_DRIVE = 20_000.0
-"""Largest force (N) with which a person's body tracks the velocity the pedestrian model
-gives it: enough to follow any gait change within a physics substep, bounded so that a robot
-caught between two people is squeezed out by the contacts instead of crushed."""
-PEOPLE_ITERATIONS = 10
-"""Solver iterations of a world with people: a 0.18 kg robot caught between 70 kg bodies needs
-more than the robots' 10 to be squeezed out."""
+"""Largest force (N) with which a person's body holds the velocity the pedestrian model gives
+it against robots (its body is given that velocity at each period's start): a robot pushing
+with its 1 N drive does not move it."""
 WALL_THICKNESS = 1.0
 """Radius (m) of the wall segments; their inner faces are at ±arena_half_size. Thick walls:
 a robot would have to travel this far in one physics substep to pass through one (the config
@@ -109,8 +106,6 @@ class World:
         self.space = pymunk.Space()
         self.space.collision_slop = config.collision_slop
         self.space.iterations = 10
-        if leader_radius is not None or pedestrians is not None:
-            self.space.iterations = PEOPLE_ITERATIONS
         # Overlaps are removed in full in the substep after they form (chipmunk's bias moves
         # bodies apart without adding velocity), and the last substep of a control period is
         # split in two, so an overlap formed just before a sample is at most half a substep's

@@ -221,3 +221,11 @@ def test_the_walkable_area_of_a_map_is_its_free_cells():
 def test_a_person_walks_the_lab_map():
     _, pos, _ = rollout(steps=80, scene="lab", leader="person", robots=4)
     assert np.hypot(*(pos[-1, 0] - pos[0, 0])) > 1.0, "the person walked off its start"
+
+
+def test_a_crowd_that_does_not_fit_is_refused_and_leaves_no_episode():
+    env = parallel_env(scene="small_room", path_size=1.0, crowd=60, robots=4)
+    with pytest.raises(ValueError, match=r"crowd: no free place for a pedestrian"):
+        env.reset(seed=0)
+    with pytest.raises(RuntimeError, match=r"call reset\(\) first"):
+        env.step({})
