@@ -269,8 +269,8 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
                    help="preset of a bare 'reynolds' policy (paper)")
     p.add_argument("--suite", default="paper", help="paper (default), robustness, "
-                   "generalisation (the learned policy's trained and unseen cases), or a TOML "
-                   "file")
+                   "generalisation (the learned policy's trained and unseen cases), scenes, "
+                   "person (a person leading: speed, group size, crowd), or a TOML file")
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=None, help="seeds 0..N-1 (suite's: 5)")
     seeds.add_argument("--blocks", type=int, default=None, metavar="K",
