@@ -14,9 +14,10 @@ from boids_env.extras import require
 from boids_env.world.realism import REALISMS
 from boids_env.world.scenario import LEADERS
 
-POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
-               "shipped PPO followers), learned-study (PPO on the study's reward alone), an "
-               "SB3 model .zip, or module:object (a Policy instance, class or factory)")
+POLICY_HELP = ("reynolds (default), reynolds@boids_ros or reynolds@proxemic (a preset), "
+               "random, learned (the shipped PPO followers), learned-study (PPO on the study's "
+               "reward alone), learned-person (PPO following a person), an SB3 model .zip, "
+               "or module:object (a Policy instance, class or factory)")
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
