@@ -228,8 +228,23 @@ RQ1 trade-off), the group size, and the crowd's density (0, 5, 10, 20 pedestrian
 doorway scene's 71.5 m² of floor: 0 to 0.28 per m²). Run it for ``reynolds`` and
 ``reynolds@proxemic``."""
 
+_FOLLOW = {"leader": "person", "robots": 13}
+PERSON_LEARNED = Suite("person_learned", (
+    Case("square 0.55", "trained", "case", "square 0.55", {**_FOLLOW, "leader_speed": 0.55}),
+    Case("circle 0.5", "trained", "case", "circle 0.5",
+         {**_FOLLOW, "path": "circle", "leader_speed": 0.5}),
+    Case("figure-eight 0.6", "trained", "case", "figure-eight 0.6",
+         {**_FOLLOW, "path": "figure_eight", "leader_speed": 0.6}),
+    Case("doorway", "unseen", "case", "doorway", {**_FOLLOW, "scene": "doorway"}),
+    Case("doorway walk replayed", "unseen", "case", "doorway walk replayed",
+         {**_FOLLOW, "scene": "doorway", "leader": "trajectory",
+          "leader_trajectory": "doorway_walk"})))
+"""The ``learned-person`` policy's bar: a person walking three paths of the kind its recipe
+trains on (``trained``) and two it never saw (``unseen``: the doorway scene, and the shipped
+walk replayed there), 13 robots."""
+
 SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION,
-          "scenes": SCENES, "person": PERSON}
+          "scenes": SCENES, "person": PERSON, "person_learned": PERSON_LEARNED}
 
 
 def load_suite(spec: str | Path) -> Suite:

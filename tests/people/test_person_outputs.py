@@ -106,3 +106,13 @@ def test_boids_run_takes_the_person_flags_and_set(tmp_path, capsys):
     assert main(["run", "--leader", "person", "--set", "crowd=-1", *short,
                  "--out", str(tmp_path / "bad")]) == 2
     assert "crowd must be in [0, 500]" in capsys.readouterr().err
+
+
+def test_the_person_learned_suite_has_trained_and_unseen_cases():
+    from boids_env.config import EnvConfig
+    from boids_env.eval.suites import SUITES
+
+    suite = SUITES["person_learned"]
+    assert [len(suite.groups[g]) for g in ("trained", "unseen")] == [3, 2]
+    for case in suite.cases:
+        EnvConfig.from_kwargs(**case.env)  # every case is a valid config
