@@ -127,6 +127,11 @@ class ObservationConfig:
     Opt-in."""
     lidar_range: float = 3.0
     """Range (m) of the range sensor."""
+    pedestrian_slots: int | None = None
+    """Pedestrian slots: the nearest pedestrians within ``pedestrian_range`` (relative
+    position, velocity, valid flag each, as a neighbour slot). None: 4 with a crowd, else 0."""
+    pedestrian_range: float = 3.0
+    """Range (m) of the pedestrian slots."""
     frame: str = "world"
     """Frame of observations and actions, one of FRAMES: ``world`` (the study's) or
     ``leader`` (x along the leader's heading, y to its left; opt-in, for policies that should
@@ -157,6 +162,11 @@ class ObservationConfig:
         _set(self, "lidar_rays", _integer("lidar_rays", self.lidar_rays, 0, 1024))
         _set(self, "lidar_range", _number("lidar_range", self.lidar_range, 0.0, 100,
                                           lo_open=True, unit="m"))
+        if self.pedestrian_slots is not None:
+            _set(self, "pedestrian_slots", _integer("pedestrian_slots", self.pedestrian_slots,
+                                                    0, 64))
+        _set(self, "pedestrian_range", _number("pedestrian_range", self.pedestrian_range, 0.0,
+                                               100, lo_open=True, unit="m"))
         _set(self, "relative_actions", _flag("relative_actions", self.relative_actions))
         if self.frame not in FRAMES:
             raise ValueError(f"frame must be one of {FRAMES}, got {self.frame!r}")
@@ -204,6 +214,13 @@ class MetricsConfig:
     · dt per step). Not in the study: the cohesion flag alone tells a follower too far to get
     back soon nothing about getting closer, so it trades the flag for alignment; this dense
     term pays for closing in. 0 (off) under both rewards."""
+    reward_intrusion: float = 0.0
+    """Weight of the penalty while a follower's centre is within ``intrusion_distance`` of
+    the leader (a person's personal space) or of a pedestrian (−w · dt per step). Not in the
+    study; 0 (off) under both rewards."""
+    intrusion_distance: float = 1.2
+    """Centre distance (m) under which ``reward_intrusion`` applies: the outer edge of Hall's
+    personal zone (1.2 m)."""
     safety_distance: float = 0.3
     """Centre distance (m) under which ``reward_proximity`` applies. Not in the study."""
     wall_distance: float = 0.15
@@ -221,7 +238,8 @@ class MetricsConfig:
                      unit="degrees"))
         if not isinstance(self.wrap_alignment, bool):
             raise ValueError(f"wrap_alignment must be True or False, got {self.wrap_alignment!r}")
-        for name in ("reward_separation", "reward_cohesion", "reward_alignment", "reward_gap"):
+        for name in ("reward_separation", "reward_cohesion", "reward_alignment", "reward_gap",
+                     "reward_intrusion"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
         if self.separation_threshold >= self.cohesion_threshold:
             raise ValueError(f"separation_threshold ({self.separation_threshold} m) must be "
@@ -231,6 +249,8 @@ class MetricsConfig:
         for name in SAFE_WEIGHTS:
             if getattr(self, name) is not None:
                 _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
+        _set(self, "intrusion_distance", _number("intrusion_distance", self.intrusion_distance,
+                                                 0.0, 10, lo_open=True, unit="m"))
         _set(self, "safety_distance", _number("safety_distance", self.safety_distance, 0.0, 10,
                                               lo_open=True, unit="m"))
         _set(self, "wall_distance", _number("wall_distance", self.wall_distance, 0.0, 10,
@@ -318,6 +338,15 @@ class EnvConfig:
             return 1
         return 0 if self.world.scene == "arena" else DEFAULT_STATIC_SLOTS
 
+    @property
+    def pedestrian_slots(self) -> int:
+        """The number of pedestrian slots in the observations (``pedestrian_slots``
+        resolved: see :class:`ObservationConfig`)."""
+        slots = self.observation.pedestrian_slots
+        if slots is not None:
+            return slots
+        return DEFAULT_PEDESTRIAN_SLOTS if self.scenario.crowd else 0
+
     def to_dict(self) -> dict[str, dict[str, Any]]:
         """A JSON-ready nested dict (tuples become lists)."""
         return dataclasses.asdict(self)
@@ -340,6 +369,8 @@ class EnvConfig:
         return cls.from_kwargs(**flat)
 
 
+DEFAULT_PEDESTRIAN_SLOTS = 4
+"""Pedestrian slots in the observations with a crowd (``pedestrian_slots``)."""
 DEFAULT_STATIC_SLOTS = 4
 """Static slots in the observations of any scene but the study's arena (``static_slots``)."""
 
@@ -368,7 +399,29 @@ def fastest_speed(config: EnvConfig) -> tuple[float, str]:
     else:
         leader = (sc.leader_speed, f"leader_speed={sc.leader_speed:g} m/s")
     follower = (config.world.max_speed, f"max_speed={config.world.max_speed:g} m/s")
-    return max(follower, leader)
+    return max(follower, leader, *_people_speeds(sc))
+
+
+def _people_speeds(sc: ScenarioConfig) -> list[tuple[float, str]]:
+    """The fastest the person and the crowd move (m/s), and what sets it."""
+    from boids_env.world.people import CROWD_SPEED_SPREAD, GAIT_RANGE
+
+    out = []
+    if sc.leader == "person" and sc.path != "external":
+        out.append((sc.leader_speed * GAIT_RANGE[1],
+                    f"a person at leader_speed={sc.leader_speed:g} m/s × {GAIT_RANGE[1]:g} "
+                    f"(its fastest gait)"))
+    if sc.leader == "trajectory":
+        from boids_env.world.walks import max_walk_speed, read_walk
+
+        assert sc.leader_trajectory is not None
+        fastest = max_walk_speed(*read_walk(sc.leader_trajectory))
+        out.append((fastest, f"the walk {sc.leader_trajectory} ({fastest:.3g} m/s at most)"))
+    if sc.crowd:
+        out.append((sc.crowd_speed * CROWD_SPEED_SPREAD[1],
+                    f"pedestrians at crowd_speed={sc.crowd_speed:g} m/s × "
+                    f"{CROWD_SPEED_SPREAD[1]:g}"))
+    return out
 
 
 MAX_DRIVE_ACCELERATION = 100.0
@@ -446,17 +499,21 @@ def _check_scene(config: EnvConfig) -> None:
     scene = config.scene
     path = preview_path(sc, w.dt)
     cells = initial_positions(sc, None, layout_heading(sc, w.scene, path))
-    need = w.robot_radius + sc.init_jitter * math.sqrt(2)
+    need = np.full(len(cells), w.robot_radius + sc.init_jitter * math.sqrt(2))
+    if sc.leader != "robot":
+        need[0] = sc.person_radius  # a person (or a walk) starts exactly at its start
     clear = scene.clearance(cells)
     bad = np.flatnonzero(clear <= need)
     if bad.size:
         k = int(bad[0])
         who = "the leader" if k == 0 else f"follower {k}"
+        rule = ("person_radius" if k == 0 and sc.leader != "robot"
+                else "robot_radius + init_jitter·√2")
         raise ValueError(
             f"the start does not fit scene {scene.name!r}: {who} would start at "
             f"({cells[k][0]:.2f}, {cells[k][1]:.2f}), {max(clear[k], 0.0):.3f} m from "
-            f"{scene.nearest_name(cells[k])}; it needs more than {need:.3f} m (robot_radius + "
-            f"init_jitter·√2): change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, "
+            f"{scene.nearest_name(cells[k])}; it needs more than {need[k]:.3f} m ({rule}): "
+            f"change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, "
             f"layout_spacing ({sc.layout_spacing:g} m) or robots ({sc.robots})")
     if path is None:
         return
@@ -521,6 +578,11 @@ class ReynoldsParams:
     obstacle_lookahead: float = 1.0
     """Look-ahead time (s): approaching an obstacle at speed u counts as being u × lookahead
     closer to it, so a fast follower starts braking earlier."""
+    personal_space: float = 0.0
+    """Radius (m) of a person's personal space the leader term keeps clear (the
+    proxemics-aware variant, preset ``proxemic``: 1.2 m, Hall's personal zone): the leader
+    term seeks the circle of this radius around the leader and pushes followers sideways out
+    of its path ahead. 0: the study's leader term (seek the leader's centre)."""
 
     def __post_init__(self) -> None:
         if self.obstacle_avoidance is not None:
@@ -531,6 +593,8 @@ class ReynoldsParams:
                                                 0.0, 10, lo_open=True, unit="m"))
         _set(self, "obstacle_lookahead", _number("obstacle_lookahead", self.obstacle_lookahead,
                                                  0.0, 60, unit="s"))
+        _set(self, "personal_space", _number("personal_space", self.personal_space, 0.0, 5.0,
+                                             unit="m"))
         for name in ("separation_weight", "cohesion_weight", "alignment_weight",
                      "leader_weight"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 100))
@@ -552,6 +616,8 @@ PRESETS: dict[str, ReynoldsParams] = {
     "paper": ReynoldsParams(),
     # The defaults of the original code (boids_ros / sphero_formation).
     "boids_ros": ReynoldsParams(horizon=0.75, desired_separation=0.45),
+    # Beyond the study: the proxemics-aware leader term for following a person.
+    "proxemic": ReynoldsParams(personal_space=1.2),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
 

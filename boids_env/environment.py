@@ -15,12 +15,13 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from boids_env import metrics
+from boids_env import metrics, proxemics
 from boids_env.config import EnvConfig
-from boids_env.observations import Observer
+from boids_env.observations import Crowd, Observer
 from boids_env.vectors import as_velocities, clip_speed
 from boids_env.world import scenario
 from boids_env.world.leader import ExternalLeader, Leader, make_leader, preview_path, redraw_clear
+from boids_env.world.person import make_person
 from boids_env.world.realism import Realism
 from boids_env.world.scenario import ScenarioConfig
 from boids_env.world.space import Snapshot, World
@@ -36,18 +37,22 @@ class ArrayStep(NamedTuple):
     rewards: npt.NDArray[np.float64]
     """(F,) the rewards (the sum of ``terms``)."""
     terms: npt.NDArray[np.float64]
-    """(7, F) the reward terms in ``REWARD_INFO_KEYS`` order."""
+    """(8, F) the reward terms in ``REWARD_INFO_KEYS`` order."""
     truncated: bool
     """The episode ended (all followers are truncated together; there is no termination)."""
 
 REWARD_INFO_KEYS = ("reward_separation", "reward_cohesion", "reward_alignment",
-                    "reward_proximity", "reward_contact", "reward_wall", "reward_gap")
+                    "reward_proximity", "reward_contact", "reward_wall", "reward_gap",
+                    "reward_intrusion")
 """The per-term rewards every follower's info holds, after reset and after every step: the
 study's three, then the safety terms (0 unless ``reward="safe"`` or their weights are set),
-then the cohesion gap (0 unless ``reward_gap`` is set)."""
-RESET_OPTIONS = (*(f.name for f in fields(ScenarioConfig) if f.name != "robots"), "obs_noise")
+then the cohesion gap (0 unless ``reward_gap`` is set), then the intrusion into the
+leader's or a pedestrian's personal space (0 unless ``reward_intrusion`` is set)."""
+RESET_OPTIONS = (*(f.name for f in fields(ScenarioConfig) if f.name not in ("robots", "crowd")),
+                 "obs_noise")
 """Fields that ``reset(options=...)`` may change for one episode: the scenario's (not
-``robots``, which fixes the agents) and the sensing noise."""
+``robots``, which fixes the agents, nor ``crowd``, which fixes the observations' pedestrian
+slots) and the sensing noise."""
 
 
 class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
@@ -76,7 +81,16 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     | 4:6 | leader velocity | m/s | ±velocity_bound |
     | 6+5k : 11+5k | slot k: relative position, velocity, valid | m, m/s, 1 | ±horizon, ±vb, [0,1] |
 
-    Slots hold the robots within ``horizon`` (the leader included), nearest first.
+    Slots hold the robots within ``horizon`` (the leader included), nearest first. Opt-in
+    blocks follow (:attr:`layout`): static slots, lidar rays and, with a crowd, pedestrian
+    slots (relative position, velocity, valid flag of the nearest pedestrians).
+
+    ## A person as the leader (opt-in)
+    ``leader="person"``: robot 0 is a pedestrian walked by JuPedSim (the ``people`` extra)
+    to the corners of its path with a varying gait and pauses, a 0.22 m, 70 kg body the robots
+    cannot push; ``leader="trajectory"`` replays a recorded walk (``leader_trajectory``, a
+    CSV of t, x, y); ``crowd=N`` adds pedestrians walking to random goals. The episode's
+    metrics then include the proxemics of :mod:`boids_env.proxemics`.
 
     ## Rewards
     Per follower and step: −(w_sep·[sep] + w_coh·[coh] + w_ali·[ali]) · dt, the flags of
@@ -88,7 +102,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     (touching a robot) and ``reward_wall`` (centre within ``wall_distance``, 0.15 m, of a
     wall); these keys are always in the infos (0 under the study's reward). The opt-in
     ``reward_gap`` weight adds −w·(distance to the leader − 2.25 m)₊·dt, a dense cohesion
-    signal (info key ``reward_gap``).
+    signal (info key ``reward_gap``). The opt-in ``reward_intrusion`` weight adds −w·dt while
+    a follower is within ``intrusion_distance`` (1.2 m, Hall's personal zone) of the leader
+    or a pedestrian (info key ``reward_intrusion``), for following a person.
 
     ## Starting State
     Leader at (0, 0), followers on the study's 0.5 m grid behind it with a seeded jitter of
@@ -142,6 +158,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._rng: np.random.Generator | None = None
         self._world: World | None = None
         self._leader: Leader | None = None
+        self._people: Any = None
         self._renderer: Any = None
         self.episode_config = self.config
         self.overlays: dict[str, npt.NDArray[np.float64]] = {}
@@ -192,11 +209,19 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if sc.path == "random_waypoints" and not scene.is_empty_box:
             self._leader = redraw_clear(sc, scene, wc.robot_radius, self._leader, self._rng,
                                         wc.dt)
-        self._world = World(wc, self._initial_positions, scene)
+        # the person and the crowd draw from the stream only when asked for: defaults unchanged
+        try:
+            self._leader, self._people = make_person(sc, scene, self._leader,
+                                                     self._initial_positions, self._rng, wc.dt)
+        except ValueError:  # no room for the crowd: no half-made episode to step on
+            self._world, self.agents = None, []
+            raise
+        self._world = self._new_world()
         self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
         self._tail_steps = round(sc.tail_time / wc.dt)
         self._finish_step: int | None = None
-        self._history: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None]] = []
+        self._history: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None,
+                                  npt.NDArray[np.float64] | None]] = []
         self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)
         self._observer = Observer(episode)
         self._observer.reset(self._rng, self._leader.initial_heading)
@@ -213,12 +238,24 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
         self._safety_scale = -np.array(episode.metrics.safety_weights)[:, None] * wc.dt
         self._gap_scale = -episode.metrics.reward_gap * wc.dt
+        self._intrusion_scale = -episode.metrics.reward_intrusion * wc.dt
         self.agents = list(self.possible_agents)
         self.overlays = {}
         obs = self._observe()
         if self.render_mode == "human":
             self.render()
         return obs
+
+    def _new_world(self) -> World:
+        """The episode's world at its start: a person leader and the crowd as kinematic
+        bodies when the scenario has them."""
+        cfg = self.episode_config
+        sc = cfg.scenario
+        people = self._people
+        return World(cfg.world, self._initial_positions, cfg.scene,
+                     leader_radius=None if sc.leader == "robot" else sc.person_radius,
+                     pedestrians=None if people is None else people.start_pedestrians,
+                     pedestrian_radius=sc.person_radius)
 
     def _episode_config(self, options: Mapping[str, Any] | None) -> EnvConfig:
         if options is None:
@@ -249,11 +286,11 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             return {}, {}, {}, {}, {}
         agents = self.agents
         result = self._advance(self._parse_actions(actions))
-        k0, k1, k2, k3, k4, k5, k6 = REWARD_INFO_KEYS
+        k0, k1, k2, k3, k4, k5, k6, k7 = REWARD_INFO_KEYS
         # a literal per agent: 4× faster than dict(zip(...)) (1 ms a step at 1000 robots)
-        infos = {a: {k0: c0, k1: c1, k2: c2, k3: c3, k4: c4, k5: c5, k6: c6}
-                 for a, (c0, c1, c2, c3, c4, c5, c6) in zip(agents, result.terms.T.tolist(),
-                                                              strict=True)}
+        infos = {a: {k0: c0, k1: c1, k2: c2, k3: c3, k4: c4, k5: c5, k6: c6, k7: c7}
+                 for a, (c0, c1, c2, c3, c4, c5, c6, c7) in zip(
+                     agents, result.terms.T.tolist(), strict=True)}
         return (dict(zip(agents, result.observations, strict=True)),
                 dict(zip(agents, result.rewards.tolist(), strict=True)),
                 dict.fromkeys(agents, False), dict.fromkeys(agents, result.truncated), infos)
@@ -292,23 +329,29 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         sc = self.episode_config.scenario
         if sc.startup_hold and world.time < sc.startup_time - 1e-9:
             commands = np.zeros_like(commands)
+        crowd = None
+        if self._people is not None:
+            self._people.advance(world.time)
+            dt = self.episode_config.world.dt
+            crowd = (self._people.pedestrians - world.pedestrian_positions) / dt
         full = np.empty((len(commands) + 1, 2))
         full[0] = leader.command(world.time, world.positions[0])
         full[1:] = commands
         if self._realism is None:
-            world.step(full)
-            self._history.append((world.commanded, None))
+            world.step(full, None, crowd)
+            self._history.append((world.commanded, None, crowd))
         else:
             executed = self._realism.executed(full, world.positions, world.time)
-            world.step(full, executed)
-            self._history.append((world.commanded, executed))
+            world.step(full, executed, crowd)
+            self._history.append((world.commanded, executed, crowd))
         cfg = self.episode_config
         flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded)
         stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])  # (3, F)
         self._counts += stacked
         terms = np.vstack([self._reward_scale * stacked,  # metrics.reward_terms as one array
                            self._safety_terms(world.positions),
-                           self._gap_term(world.positions)])  # (7, F)
+                           self._gap_term(world.positions),
+                           self._intrusion_term(world)])  # (8, F)
         if self._finish_step is None and leader.finished:
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
@@ -340,6 +383,16 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         gap = metrics.cohesion_gap(positions, self.episode_config.metrics.cohesion_threshold)
         return self._gap_scale * gap[None]
 
+    def _intrusion_term(self, world: World) -> npt.NDArray[np.float64]:
+        """The intrusion reward term (1, F): −weight · dt while a follower's centre is within
+        ``intrusion_distance`` of the leader's (a person's personal space) or of a
+        pedestrian's; zeros when its weight is 0."""
+        if not self._intrusion_scale:
+            return np.zeros((1, world.n - 1))
+        flags = proxemics.intrusion_flags(world.positions, world.pedestrian_positions,
+                                        self.episode_config.metrics.intrusion_distance)
+        return self._intrusion_scale * flags[None]
+
     def _parse_actions(self, actions: Mapping[AgentID, npt.ArrayLike]
                        ) -> npt.NDArray[np.float64]:
         if not isinstance(actions, Mapping):
@@ -364,8 +417,10 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         return arr
 
     def _observe(self) -> npt.NDArray[np.float32]:
-        assert self._world is not None
-        obs = self._observer(self._world.positions, self._world.velocities)
+        world = self._world
+        assert world is not None
+        crowd = Crowd(world.pedestrian_positions, world.pedestrian_velocities) if world.p else None
+        obs = self._observer(world.positions, world.velocities, crowd)
         return obs if self._realism is None else self._realism.observations(obs)
 
     # -------------------------------------------------------------------------- queries
@@ -443,9 +498,11 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         m = self.episode_metrics()
         status = (f"t = {m['duration']:5.1f} s   V_sep {m['V_sep']:.3f}   V_coh {m['V_coh']:.3f}"
                   f"   V_align {m['V_align']:.3f}")
+        sc = self.episode_config.scenario
         frame = Frame(world.positions, world.steps, self.episode_config.world.robot_radius,
                       status, self.episode_config.observation.horizon, dict(self.overlays),
-                      tuple(self.hud_text))
+                      tuple(self.hud_text), None if sc.leader == "robot" else sc.person_radius,
+                      world.pedestrian_positions if world.p else None, sc.person_radius)
         return self._renderer.draw(frame)
 
     def close(self) -> None:
@@ -468,9 +525,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         replay = state.pop("_replay", False)
         self.__dict__.update(state)
         if replay:
-            self._world = World(self.episode_config.world, self._initial_positions)
-            for command, executed in self._history:
-                self._world.step(command, executed)
+            self._world = self._new_world()
+            for command, executed, crowd in self._history:
+                self._world.step(command, executed, crowd)
 
 
 def parallel_env(render_mode: str | None = None, **kwargs: Any) -> BoidsEnv:

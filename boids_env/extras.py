@@ -12,6 +12,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "eval": ("statsmodels", "matplotlib", "tqdm", "tabulate", "markdown"),
     "train": ("stable_baselines3", "torch", "tensorboard", "tqdm", "rich"),
     "ray": ("ray",),
+    "people": ("jupedsim", "shapely"),
 }
 """The import names each extra of ``boids-env`` provides."""
 

@@ -323,8 +323,9 @@ def leader_distance(positions: FloatArray) -> FloatArray:
 
 def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: FloatArray,
                     config: MetricsConfig, dt: float, robot_radius: float,
-                    scene: Scene | None = None, leader_path: FloatArray | None = None
-                    ) -> dict[str, object]:
+                    scene: Scene | None = None, leader_path: FloatArray | None = None, *,
+                    person_radius: float | None = None, pedestrians: FloatArray | None = None,
+                    pedestrian_radius: float = 0.22) -> dict[str, object]:
     """Everything reported for one episode, from its sampled arrays.
 
     Args:
@@ -336,6 +337,10 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         scene: the static scene, for wall contact, clearance and line of sight (None: the
             study's 10 m arena).
         leader_path: the leader's scripted path as a polyline (M, 2), for its deviation.
+        person_radius: the leader is a person of this radius (m): adds the proxemics of
+            :func:`boids_env.proxemics.person_metrics` (None: a robot leads, no such keys).
+        pedestrians: (T, P, 2) the crowd's positions, for the crowd's proxemics.
+        pedestrian_radius: the pedestrians' radius (m).
 
     Returns:
         ``V_sep``, ``V_coh``, ``V_align``, the per-follower ``count_*`` lists,
@@ -370,6 +375,18 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
     out["collisions"] = int(safety["contacts_follower"] + safety["contacts_leader"])
     out.update(safety)
     out["no_sight"] = (~sight).mean(axis=0).tolist() if sight.size else []
+    if person_radius is not None:
+        from boids_env.proxemics import person_metrics
+
+        out.update(person_metrics(pos, np.asarray(velocities, dtype=float)[:, 0], robot_radius,
+                                  person_radius))
+        # the leader's contacts by the person's body, not a robot's
+        out["contacts_leader"] = float(out["person_contacts"])  # type: ignore[arg-type]
+        out["collisions"] = int(out["contacts_follower"] + out["contacts_leader"])  # type: ignore[operator]
+    if pedestrians is not None and np.asarray(pedestrians).shape[1]:
+        from boids_env.proxemics import crowd_metrics
+
+        out.update(crowd_metrics(pos, pedestrians, robot_radius, pedestrian_radius))
     return out
 
 

@@ -56,7 +56,8 @@ KD_TREE_MIN_ROBOTS = 96
 (measured: all-pairs wins below about 100 robots)."""
 
 
-BLOCKS = ("own_velocity", "leader_position", "leader_velocity", "neighbours", "static", "lidar")
+BLOCKS = ("own_velocity", "leader_position", "leader_velocity", "neighbours", "static", "lidar",
+          "pedestrians")
 """The observation's blocks, in the order they appear (empty blocks are left out)."""
 
 
@@ -76,6 +77,9 @@ class ObservationLayout:
     walls or obstacles, valid flag). The study-era ``sense_walls`` is one slot."""
     lidar: int = 0
     """R, the number of range-sensor rays (1 value each: distance in m)."""
+    pedestrians: int = 0
+    """P, the number of pedestrian slots (5 values each, as a neighbour slot: relative
+    position, velocity, valid flag), nearest first (opt-in, with a crowd)."""
 
     own_velocity = slice(0, 2)
     leader_position = slice(2, 4)
@@ -83,7 +87,7 @@ class ObservationLayout:
     neighbours_start = 6
 
     def __post_init__(self) -> None:
-        for name in ("neighbours", "static", "lidar"):
+        for name in ("neighbours", "static", "lidar", "pedestrians"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
                 raise ValueError(f"ObservationLayout {name} must be a non-negative integer, "
@@ -94,7 +98,7 @@ class ObservationLayout:
         """``(name, size)`` of every non-empty block, in order."""
         sizes = {"own_velocity": 2, "leader_position": 2, "leader_velocity": 2,
                  "neighbours": SLOT_SIZE * self.neighbours, "static": WALL_SIZE * self.static,
-                 "lidar": self.lidar}
+                 "lidar": self.lidar, "pedestrians": SLOT_SIZE * self.pedestrians}
         return tuple((name, sizes[name]) for name in BLOCKS if sizes[name])
 
     @classmethod
@@ -108,10 +112,11 @@ class ObservationLayout:
             raise ValueError(f"an observation layout is a list of [name, size] pairs, got "
                              f"{blocks!r}") from None
         layout = cls(named.get("neighbours", 0) // SLOT_SIZE, named.get("static", 0) // WALL_SIZE,
-                     named.get("lidar", 0))
+                     named.get("lidar", 0), named.get("pedestrians", 0) // SLOT_SIZE)
         if list(layout.blocks) != pairs:
             raise ValueError(f"not an observation layout: {pairs!r} (blocks, in order: "
-                             f"{list(BLOCKS)}; neighbours 5 per slot, static 3 per slot)")
+                             f"{list(BLOCKS)}; neighbours and pedestrians 5 per slot, static 3 "
+                             f"per slot)")
         return layout
 
     @property
@@ -168,6 +173,11 @@ class ObservationLayout:
         block = self.block("static") if self.static else slice(0, 0)
         return obs[..., block].reshape(*obs.shape[:-1], self.static, WALL_SIZE)
 
+    def pedestrian_slots(self, obs: FloatArray) -> FloatArray:
+        """View of the pedestrian slots of a batch ``(..., size)`` as ``(..., P, 5)``."""
+        block = self.block("pedestrians") if self.pedestrians else slice(0, 0)
+        return obs[..., block].reshape(*obs.shape[:-1], self.pedestrians, SLOT_SIZE)
+
     @staticmethod
     def slot_position(slots: FloatArray) -> FloatArray:
         """Relative positions ``(..., K, 2)`` of slots from :meth:`slots`."""
@@ -184,7 +194,8 @@ class ObservationLayout:
         return slots[..., 4]
 
     def space(self, reach: float, horizon: float, velocity_bound: float,
-              static_range: float | None = None, lidar_range: float = 0.0) -> spaces.Box:
+              static_range: float | None = None, lidar_range: float = 0.0,
+              pedestrian_range: float = 0.0) -> spaces.Box:
         """The observation Box: finite bounds, float32. ``reach`` bounds the leader's
         relative position (twice the arena's half size: the scene's span)."""
         low = np.empty(self.size, dtype=np.float32)
@@ -204,6 +215,11 @@ class ObservationLayout:
         if self.lidar:
             low[self.block("lidar")] = 0.0
             high[self.block("lidar")] = lidar_range
+        if self.pedestrians:
+            r, vb = pedestrian_range, velocity_bound
+            block = self.block("pedestrians")
+            low[block] = np.tile([-r, -r, -vb, -vb, 0.0], self.pedestrians)
+            high[block] = np.tile([r, r, vb, vb, 1.0], self.pedestrians)
         return spaces.Box(low, high, dtype=np.float32)
 
 
@@ -276,6 +292,22 @@ class Sensors:
     """Range (m) of the lidar; a ray that hits nothing reads this."""
     robot_radius: float = 0.036
     """Robots are discs of this radius for the lidar (m)."""
+    leader_radius: float | None = None
+    """A person leads: the leader is a disc of this radius for the lidar (m)."""
+    pedestrian_radius: float = 0.22
+    """Pedestrians are discs of this radius for the lidar (m)."""
+    pedestrian_range: float = 3.0
+    """Pedestrian slots hold the pedestrians within this distance (m)."""
+
+
+@dataclass(frozen=True)
+class Crowd:
+    """The pedestrians at one instant, for the observations."""
+
+    positions: FloatArray
+    """(P, 2) positions (m)."""
+    velocities: FloatArray
+    """(P, 2) velocities (m/s)."""
 
 
 LIDAR_ROBOTS = 32
@@ -292,7 +324,8 @@ def lidar_directions(rays: int) -> FloatArray:
 def build_observations(positions: FloatArray, velocities: FloatArray, layout: ObservationLayout,
                        horizon: float, velocity_bound: float, reach: float,
                        frame: npt.NDArray[np.float64] | None = None,
-                       sensors: Sensors | None = None) -> npt.NDArray[np.float32]:
+                       sensors: Sensors | None = None,
+                       crowd: Crowd | None = None) -> npt.NDArray[np.float32]:
     """Observations of every follower, one row each: ``(N-1, layout.size)`` float32.
 
     Args:
@@ -305,6 +338,7 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         frame: a :func:`rotation` matrix; every vector is expressed in that frame (None: the
             world frame).
         sensors: the scene and ranges for the static slots and the lidar.
+        crowd: the pedestrians, for the pedestrian slots and the lidar (None: none).
     """
     n = len(positions)
     followers = n - 1
@@ -339,8 +373,45 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
                                                            sensors, frame)
         if layout.lidar:
             obs[:, layout.block("lidar")] = _lidar_block(world_positions, layout.lidar,
-                                                         sensors, frame)
+                                                         sensors, frame, crowd)
+    if layout.pedestrians:
+        if sensors is None:
+            raise ValueError("pedestrian slots need their range (Sensors)")
+        obs[:, layout.block("pedestrians")] = _pedestrian_block(
+            world_positions[1:], layout.pedestrians, sensors, velocity_bound, frame, crowd)
     return obs
+
+
+def _in_frame(v: FloatArray, frame: npt.NDArray[np.float64] | None) -> FloatArray:
+    """``v @ frame`` for vectors (..., 2), elementwise (no BLAS call: its kernels differ by
+    CPU in the last bit)."""
+    if frame is None:
+        return v
+    x, y = v[..., 0], v[..., 1]
+    return np.stack([x * frame[0, 0] + y * frame[1, 0], x * frame[0, 1] + y * frame[1, 1]],
+                    axis=-1)
+
+
+def _pedestrian_block(points: FloatArray, slots: int, sensors: Sensors, velocity_bound: float,
+                      frame: npt.NDArray[np.float64] | None, crowd: Crowd | None
+                      ) -> FloatArray:
+    """(F, 5·P): each follower's nearest pedestrians within ``pedestrian_range``, nearest
+    first: relative position, velocity (clipped), valid flag; empty slots all zero."""
+    block = np.zeros((len(points), slots, SLOT_SIZE))
+    if crowd is not None and len(crowd.positions):
+        rel = crowd.positions[None, :, :] - points[:, None, :]  # (F, P, 2)
+        dist = np.sqrt(rel[..., 0] * rel[..., 0] + rel[..., 1] * rel[..., 1])
+        dist = np.where(dist <= sensors.pedestrian_range, dist, np.inf)
+        order = np.argsort(dist, axis=1, kind="stable")[:, :slots]
+        near = np.take_along_axis(dist, order, axis=1)
+        valid = np.isfinite(near)
+        k = order.shape[1]
+        picked = np.take_along_axis(rel, order[..., None], axis=1)
+        vel = np.clip(crowd.velocities[order], -velocity_bound, velocity_bound)
+        block[:, :k, 0:2] = _in_frame(picked, frame) * valid[..., None]
+        block[:, :k, 2:4] = _in_frame(vel, frame) * valid[..., None]
+        block[:, :k, 4] = valid
+    return block.reshape(len(points), -1)
 
 
 def _static_block(points: FloatArray, slots: int, sensors: Sensors,
@@ -355,9 +426,10 @@ def _static_block(points: FloatArray, slots: int, sensors: Sensors,
 
 
 def _lidar_block(positions: FloatArray, rays: int, sensors: Sensors,
-                 frame: npt.NDArray[np.float64] | None) -> FloatArray:
-    """(F, R): each follower's ranges (m) to static geometry and other robots, rays evenly
-    spaced in the observation's frame."""
+                 frame: npt.NDArray[np.float64] | None, crowd: Crowd | None = None
+                 ) -> FloatArray:
+    """(F, R): each follower's ranges (m) to static geometry, other robots, a person leader
+    and pedestrians, rays evenly spaced in the observation's frame."""
     assert sensors.scene is not None
     directions = lidar_directions(rays)
     if frame is not None:
@@ -369,8 +441,16 @@ def _lidar_block(positions: FloatArray, rays: int, sensors: Sensors,
     if k:
         index, _ = nearest_neighbours(positions, sensors.lidar_range + sensors.robot_radius, k)
         centres = np.where((index >= 0)[..., None], positions[np.maximum(index, 0)], FAR_AWAY)
+        radii = np.full(1, sensors.robot_radius)
+        if sensors.leader_radius is not None:  # the person: a wider disc than a robot's
+            radii = np.where(index == 0, sensors.leader_radius, sensors.robot_radius)[:, None]
         hit = geo.ray_circles(origins[:, None, None, :], dirs[:, :, None, :],
-                              centres[:, None, :, :], np.full(1, sensors.robot_radius))
+                              centres[:, None, :, :], radii)
+        ranges = np.minimum(ranges, hit.min(axis=2))
+    if crowd is not None and len(crowd.positions):
+        hit = geo.ray_circles(origins[:, None, None, :], dirs[:, :, None, :],
+                              crowd.positions[None, None, :, :],
+                              np.full(1, sensors.pedestrian_radius))
         ranges = np.minimum(ranges, hit.min(axis=2))
     return np.minimum(ranges, sensors.lidar_range)
 
@@ -397,9 +477,11 @@ class Observer:
         scene = config.scene
         static_range = obs.horizon if obs.static_range is None else obs.static_range
         self.reach = scene.span
-        self.sensors = Sensors(scene, static_range, obs.lidar_range, config.world.robot_radius)
-        self.space = self.layout.space(self.reach, obs.horizon, obs.velocity_bound,
-                                       static_range, obs.lidar_range)
+        sc = config.scenario
+        self.sensors = Sensors(scene, static_range, obs.lidar_range, config.world.robot_radius,
+                               None if sc.leader == "robot" else sc.person_radius,
+                               sc.person_radius, obs.pedestrian_range)
+        self.space = self.make_space()
         self.heading = INITIAL_HEADING
         self._rng: np.random.Generator | None = None
         self._leader_velocity: npt.NDArray[np.float64] | None = None
@@ -409,7 +491,8 @@ class Observer:
         another's)."""
         obs = self.config.observation
         return self.layout.space(self.reach, obs.horizon, obs.velocity_bound,
-                                 self.sensors.static_range, obs.lidar_range)
+                                 self.sensors.static_range, obs.lidar_range,
+                                 obs.pedestrian_range)
 
     def reset(self, rng: np.random.Generator | None = None,
               heading: float = INITIAL_HEADING) -> None:
@@ -436,17 +519,19 @@ class Observer:
         frame = self.frame
         return actions if frame is None else times_matrix(actions, frame.T)
 
-    def __call__(self, positions: FloatArray, velocities: FloatArray
-                 ) -> npt.NDArray[np.float32]:
+    def __call__(self, positions: FloatArray, velocities: FloatArray,
+                 crowd: Crowd | None = None) -> npt.NDArray[np.float32]:
         """Observations (N-1, size) of the robots' positions and velocities (N, 2), leader
-        first. In the leader frame the heading first follows the leader's velocity."""
+        first, and the pedestrians'. In the leader frame the heading first follows the
+        leader's velocity."""
         cfg = self.config.observation
         if cfg.frame == "leader":
             vx, vy = float(velocities[0][0]), float(velocities[0][1])
             if math.hypot(vx, vy) >= HEADING_MIN_SPEED:
                 self.heading = math.atan2(vy, vx)
         obs = build_observations(positions, velocities, self.layout, cfg.horizon,
-                                 cfg.velocity_bound, self.reach, self.frame, self.sensors)
+                                 cfg.velocity_bound, self.reach, self.frame, self.sensors,
+                                 crowd)
         if cfg.obs_noise > 0:
             if self._rng is None:
                 raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")
@@ -470,10 +555,15 @@ class Observer:
             static = self.layout.static_slots(noise)
             static[..., :2] *= self.layout.static_slots(obs)[..., 2:3]
             static[..., 2] = 0.0
+        if self.layout.pedestrians:
+            walkers = self.layout.pedestrian_slots(noise)
+            walkers[..., :4] *= self.layout.pedestrian_slots(obs)[..., 4:5]
+            walkers[..., 4] = 0.0
         return noise
 
 
 def layout_of(config: EnvConfig) -> ObservationLayout:
     """The observation layout an env config gives (its resolved sensing fields)."""
     obs = config.observation
-    return ObservationLayout(obs.neighbours, config.static_slots, obs.lidar_rays)
+    return ObservationLayout(obs.neighbours, config.static_slots, obs.lidar_rays,
+                             config.pedestrian_slots)

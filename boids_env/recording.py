@@ -11,6 +11,9 @@ cmd_vx, cmd_vy``; the resolved config (JSON) is in the schema metadata under ``b
 Files carry Parquet's page checksums and a digest of their schema and metadata, verified on
 reading (:mod:`boids_env.parquet`): a file damaged on disk or in transfer is refused by name,
 never read back as other numbers.
+
+With a crowd (``crowd = P``) the pedestrians follow the robots as rows ``robot = N … N+P-1``
+(their command columns hold their velocity).
 """
 
 from __future__ import annotations
@@ -53,13 +56,23 @@ class Recording:
     Reynolds policy's weighted rule forces (N; the leader term in m), zero at reset; None
     when the policy exposes none. Drawn as arrows in videos and ROS bag markers."""
 
+    pedestrians: FloatArray | None = None
+    """The crowd's positions (T+1, P, 2) (None without a crowd)."""
+    pedestrian_velocities: FloatArray | None = None
+    """The crowd's velocities (T+1, P, 2) (None without a crowd)."""
+
     def metrics(self) -> dict[str, Any]:
         """The episode's V_*, extra flock and safety metrics, from the samples after each
-        step."""
+        step (and the proxemics when a person leads or a crowd walks)."""
         cfg = self.config
+        sc = cfg.scenario
+        crowd = None if self.pedestrians is None else self.pedestrians[1:]
         return metrics.episode_metrics(self.positions[1:], self.velocities[1:],
                                        self.commanded[1:], cfg.metrics, cfg.world.dt,
-                                       cfg.world.robot_radius, cfg.scene, self.leader_path)
+                                       cfg.world.robot_radius, cfg.scene, self.leader_path,
+                                       person_radius=None if sc.leader == "robot"
+                                       else sc.person_radius, pedestrians=crowd,
+                                       pedestrian_radius=sc.person_radius)
 
     def to_parquet(self, path: str | Path) -> None:
         """Writes the tidy table with the config in the schema metadata, atomically: a
@@ -69,18 +82,24 @@ class Recording:
 
         if Path(path).is_dir():
             raise IsADirectoryError(f"cannot write a recording to {path}: it is a folder")
-        steps, n = self.positions.shape[:2]
+        pos, vel, cmd = self.positions, self.velocities, self.commanded
+        if self.pedestrians is not None and self.pedestrian_velocities is not None:
+            pos = np.concatenate([pos, self.pedestrians], axis=1)
+            vel = np.concatenate([vel, self.pedestrian_velocities], axis=1)
+            cmd = np.concatenate([cmd, self.pedestrian_velocities], axis=1)
+        steps, n = pos.shape[:2]
+        robots = self.positions.shape[1]
         cols = {
             "step": np.repeat(np.arange(steps), n),
             "time": np.repeat(self.time, n),
             "robot": np.tile(np.arange(n), steps),
-            "x": self.positions[..., 0].ravel(), "y": self.positions[..., 1].ravel(),
-            "vx": self.velocities[..., 0].ravel(), "vy": self.velocities[..., 1].ravel(),
-            "cmd_vx": self.commanded[..., 0].ravel(), "cmd_vy": self.commanded[..., 1].ravel(),
+            "x": pos[..., 0].ravel(), "y": pos[..., 1].ravel(),
+            "vx": vel[..., 0].ravel(), "vy": vel[..., 1].ravel(),
+            "cmd_vx": cmd[..., 0].ravel(), "cmd_vy": cmd[..., 1].ravel(),
         }
         for name, vec in (self.forces or {}).items():
-            full = np.full((steps, n, 2), np.nan)  # the leader's rows: NaN
-            full[:, 1:] = vec
+            full = np.full((steps, n, 2), np.nan)  # the leader's and pedestrians' rows: NaN
+            full[:, 1:robots] = vec
             cols[f"force_{name}_x"] = full[..., 0].ravel()
             cols[f"force_{name}_y"] = full[..., 1].ravel()
         table = pa.table(cols)
@@ -118,9 +137,11 @@ class Recording:
         config, extra, leader_path = _read_meta(path, raw)
         data = _read_columns(path, table)
         steps, n, order = _sample_grid(path, data)
-        if config.scenario.robots != n:
-            raise ValueError(f"{path}: its config says robots={config.scenario.robots} but the "
-                             f"data hold {n} robots")
+        robots, crowd = config.scenario.robots, config.scenario.crowd
+        if robots + crowd != n:
+            said = f"robots={robots}" + (f" and crowd={crowd}" if crowd else "")
+            raise ValueError(f"{path}: its config says {said} but the data hold {n} "
+                             f"{'bodies' if crowd else 'robots'}")
         time = data["time"][order].reshape(steps, n)
         if np.any(time != time[:, :1]):
             step = int(np.nonzero(np.any(time != time[:, :1], axis=1))[0][0])
@@ -131,10 +152,13 @@ class Recording:
 
         names = _force_names(path, table.column_names)
         data.update(_force_columns(path, table, names))
-        forces = {name: pair(f"force_{name}_x", f"force_{name}_y")[:, 1:].copy()
+        forces = {name: pair(f"force_{name}_x", f"force_{name}_y")[:, 1:robots].copy()
                   for name in names} or None
-        return cls(config, time[:, 0].copy(), pair("x", "y"), pair("vx", "vy"),
-                   pair("cmd_vx", "cmd_vy"), extra, leader_path, forces)
+        pos, vel, cmd = pair("x", "y"), pair("vx", "vy"), pair("cmd_vx", "cmd_vy")
+        crowd_pos = pos[:, robots:].copy() if crowd else None
+        crowd_vel = vel[:, robots:].copy() if crowd else None
+        return cls(config, time[:, 0].copy(), pos[:, :robots].copy(), vel[:, :robots].copy(),
+                   cmd[:, :robots].copy(), extra, leader_path, forces, crowd_pos, crowd_vel)
 
 
 def _read_meta(path: Path, raw: bytes) -> tuple[EnvConfig, dict[str, Any], FloatArray | None]:
@@ -250,6 +274,7 @@ class Recorder:
         self._vel: list[FloatArray] = []
         self._cmd: list[FloatArray] = []
         self._forces: list[dict[str, FloatArray]] = []
+        self._crowd: list[tuple[FloatArray, FloatArray]] = []
 
     def capture(self, env: BoidsEnv) -> None:
         world = env._require_world()
@@ -257,14 +282,19 @@ class Recorder:
         self._pos.append(world.positions.copy())
         self._vel.append(world.velocities.copy())
         self._cmd.append(world.commanded.copy())
+        if world.p:
+            self._crowd.append((world.pedestrian_positions.copy(),
+                                world.pedestrian_velocities.copy()))
         self._forces.append({k: np.array(v, dtype=float) for k, v in env.overlays.items()})
 
     def recording(self, env: BoidsEnv, **extra: Any) -> Recording:
         path = env.leader.reference_path()
+        crowd = (np.array([c[0] for c in self._crowd]), np.array([c[1] for c in self._crowd])
+                 ) if self._crowd else (None, None)
         return Recording(env.episode_config, np.array(self._time), np.array(self._pos),
                          np.array(self._vel), np.array(self._cmd), dict(extra),
                          None if path is None else np.asarray(path, dtype=float),
-                         self._stacked_forces())
+                         self._stacked_forces(), *crowd)
 
     def _stacked_forces(self) -> dict[str, FloatArray] | None:
         """The captured overlays as (T+1, F, 2) arrays (zero where a sample had none)."""

@@ -76,6 +76,12 @@ class Frame:
     """Per-follower vectors (F, 2) drawn as arrows, by rule name."""
     hud_lines: tuple[str, ...] = ()
     """Extra text for the panel (e.g. the live window's controls), wrapped to its width."""
+    leader_radius: float | None = None
+    """A person leads: its body's radius (m); drawn as a person, with its personal space."""
+    pedestrians: npt.NDArray[np.float64] | None = None
+    """(P, 2) the crowd's positions (m), drawn as grey people (None: no crowd)."""
+    pedestrian_radius: float = 0.22
+    """The pedestrians' radius (m)."""
 
 
 VIEWS = ("arena", "follow")
@@ -186,7 +192,9 @@ class Renderer:
                 pygame.draw.circle(canvas, HORIZON, (int(x), int(y)), r, 1)
         touching = sorted(contact_pairs(positions, 2 * scene.robot_radius + CONTACT_TOLERANCE)
                           ) if len(pos) > 1 else []
-        self._draw_robots(canvas, pos, scene.robot_radius, {k for p in touching for k in p})
+        self._draw_people(canvas, scene)
+        self._draw_robots(canvas, pos, scene.robot_radius, {k for p in touching for k in p},
+                          person=scene.leader_radius is not None)
         self._draw_arrows(canvas, positions[1:], scene.overlays)
         if self._background is None:  # the margins, over what was drawn beyond the view
             self._draw_margins(canvas)
@@ -337,11 +345,28 @@ class Renderer:
             self._trail = self._trail[-self.trail_length:]
         self._last_steps = steps
 
+    def _draw_people(self, canvas: Any, scene: Frame) -> None:
+        """The crowd's pedestrians and a person leader (body at its true size, a ring for its
+        personal space), under the robots."""
+        if scene.pedestrians is not None and len(scene.pedestrians):
+            r = max(2, round(scene.pedestrian_radius * self.scale))
+            for x, y in self.to_px(np.asarray(scene.pedestrians, dtype=float)):
+                pygame.draw.circle(canvas, style.PEDESTRIAN, (int(x), int(y)), r)
+                pygame.draw.circle(canvas, darker(style.PEDESTRIAN), (int(x), int(y)), r, 1)
+        if scene.leader_radius is not None:
+            x, y = self.to_px(np.asarray(scene.positions, dtype=float)[:1])[0]
+            centre = (int(x), int(y))
+            ring = round(style.PERSONAL_SPACE_RADIUS * self.scale)
+            pygame.draw.circle(canvas, style.PERSONAL_SPACE, centre, ring, 1)
+            body = max(3, round(scene.leader_radius * self.scale))
+            pygame.draw.circle(canvas, style.PERSON, centre, body)
+            pygame.draw.circle(canvas, darker(style.PERSON), centre, body, 2)
+
     def _draw_robots(self, canvas: Any, pos: npt.NDArray[np.int64], robot_radius: float,
-                     touching: set[int]) -> None:
+                     touching: set[int], *, person: bool = False) -> None:
         drawn = self.robot_radius_px(robot_radius, len(pos))
         true = robot_radius * self.scale
-        for k in range(len(pos) - 1, -1, -1):  # the leader last, on top
+        for k in range(len(pos) - 1, 0 if person else -1, -1):  # the leader last, on top
             centre = (int(pos[k, 0]), int(pos[k, 1]))
             radius = drawn + 1 if k == 0 and drawn > true + 0.5 else drawn
             colour = style.LEADER if k == 0 else style.FOLLOWER
@@ -424,15 +449,23 @@ class Renderer:
 
     def _legend(self, canvas: Any, scene: Frame, left: int, y: int) -> int:
         radius = self.robot_radius_px(scene.robot_radius, len(scene.positions))
+        person = scene.leader_radius is not None
         rows: list[tuple[str, Any]] = [
-            ("leader (robot 0)", lambda c: pygame.draw.circle(canvas, style.LEADER, c,
-                                                              radius + 1)),
+            ("person (the leader)" if person else "leader (robot 0)",
+             lambda c: pygame.draw.circle(canvas, style.PERSON if person else style.LEADER, c,
+                                          7 if person else radius + 1)),
             ("follower", lambda c: pygame.draw.circle(canvas, style.FOLLOWER, c, radius)),
             ("touching a robot", lambda c: (
                 pygame.draw.circle(canvas, style.FOLLOWER, c, radius),
                 pygame.draw.circle(canvas, style.CONTACT, c, radius + 2, 2))),
             ("leader trail", lambda c: pygame.draw.line(canvas, style.TRAIL, (c[0] - 10, c[1]),
                                                         (c[0] + 10, c[1]), 2))]
+        if person:
+            rows.append(("personal space (1.2 m)", lambda c: pygame.draw.circle(
+                canvas, style.PERSONAL_SPACE, c, 8, 1)))
+        if scene.pedestrians is not None and len(scene.pedestrians):
+            rows.append(("pedestrian", lambda c: pygame.draw.circle(canvas, style.PEDESTRIAN,
+                                                                    c, 7)))
         for name in scene.overlays:
             colour = style.RULE_COLOURS.get(name, style.OTHER_ARROW)
             rows.append((style.RULE_LABELS.get(name, name), lambda c, colour=colour: draw_arrow(

@@ -12,6 +12,10 @@ Topics, one message per control step (10 Hz) stamped ``start`` + the episode tim
   leader red) and ``/markers/forces`` (the policy's rule forces as arrows, when recorded);
 - ``/leader/path`` (nav_msgs/Path: the leader's scripted path, latched, repeated every
   second), which :func:`read_bag` reads back for the leader's path deviation;
+- with a person leading, ``/person/odom`` (nav_msgs/Odometry, child frame ``person``: the
+  person's own odometry, the same pose and velocity as ``/robot_0/odom``); with a person or a
+  crowd, ``/markers/people`` (visualization_msgs/MarkerArray: upright cylinders of their
+  body's size, the person and the pedestrians);
 - ``/map`` (nav_msgs/OccupancyGrid: the scene as ``map_server`` publishes a map, latched,
   once at the start: a map scene's own cells, any other scene rasterised at 5 cm) and
   ``/markers/obstacles`` (visualization_msgs/MarkerArray: walls and blocks as lines, pillars
@@ -66,6 +70,8 @@ PATH_TOPIC = "/leader/path"
 GRID = "nav_msgs/msg/OccupancyGrid"
 MAP_TOPIC = "/map"
 OBSTACLES_TOPIC = "/markers/obstacles"
+PERSON_TOPIC = "/person/odom"
+PEOPLE_TOPIC = "/markers/people"
 _TOPIC = re.compile(r"^/robot_(\d+)/(odom|cmd_vel)$")
 _TF_ROS1 = "geometry_msgs/TransformStamped[] transforms\n"
 """tf2_msgs/TFMessage in ROS 1, which rosbags' Noetic store lacks."""
@@ -128,6 +134,10 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
     robots = connect("/markers/robots", MARKERS)
     forces = connect("/markers/forces", MARKERS) if recording.forces else None
     route = connect(PATH_TOPIC, PATH, **latched) if recording.leader_path is not None else None
+    sc = recording.config.scenario
+    person = connect(PERSON_TOPIC, ODOM) if sc.leader != "robot" else None
+    crowd = recording.pedestrians
+    people = connect(PEOPLE_TOPIC, MARKERS) if person is not None or crowd is not None else None
     build = Messages(store, ros1, recording.config.world.robot_radius)
     scene = recording.config.scene
     first = origin + round(float(recording.time[0]) * 1e9)
@@ -151,6 +161,15 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
                                                TWIST))
         writer.write(robots, ns, serialize(build.robot_markers(ns, step, pos, yaws[step]),
                                            MARKERS))
+        if person is not None:
+            msg = build.odometry(build.header(ns, step), 0, pos[0], vel[0], float(yaws[step, 0]))
+            msg.child_frame_id = "person"
+            writer.write(person, ns, serialize(msg, ODOM))
+        if people is not None:
+            walkers = np.zeros((0, 2)) if crowd is None else crowd[step]
+            markers = build.people_markers(ns, step, pos[0] if person is not None else None,
+                                           walkers, sc.person_radius)
+            writer.write(people, ns, serialize(markers, MARKERS))
         if forces is not None:
             vectors = {name: vec[step] for name, vec in recording.forces.items()}
             writer.write(forces, ns, serialize(build.force_markers(ns, step, pos[1:], vectors),

@@ -21,6 +21,8 @@ FloatArray = npt.NDArray[np.float64]
 
 FRAME = "map"
 """The world frame of every message."""
+PERSON_HEIGHT = 1.7
+"""Height (m) of the cylinders that mark people in the bags."""
 STILL = 1e-3
 """Speed (m/s) below which a measured velocity has no direction (the heading is kept)."""
 ARROW_SHAFT = 0.012
@@ -71,6 +73,8 @@ class Messages:
         self._colours = {k: t["std_msgs/msg/ColorRGBA"](*(float(c) for c in v))
                          for k, v in (("robot 0", style.rgb01(style.LEADER)),
                                       ("robot", style.rgb01(style.FOLLOWER)),
+                                      ("person", style.rgb01(style.PERSON)),
+                                      ("pedestrians", style.rgb01(style.PEDESTRIAN)),
                                       *((name, style.rgb01(c))
                                         for name, c in style.RULE_COLOURS.items()))}
 
@@ -88,8 +92,8 @@ class Messages:
         return self.t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2),
                                                       w=math.cos(yaw / 2))
 
-    def pose(self, x: float, y: float, yaw: float) -> Any:
-        point = self.t["geometry_msgs/msg/Point"](x=x, y=y, z=0.0)
+    def pose(self, x: float, y: float, yaw: float, z: float = 0.0) -> Any:
+        point = self.t["geometry_msgs/msg/Point"](x=x, y=y, z=z)
         return self.t["geometry_msgs/msg/Pose"](position=point, orientation=self.quaternion(yaw))
 
     def twist(self, vx: float, vy: float) -> Any:
@@ -149,6 +153,21 @@ class Messages:
                                self.pose(float(x), float(y), float(yaw)), (d, d, d),
                                self._colours["robot 0" if k == 0 else "robot"], [])
                    for k, ((x, y), yaw) in enumerate(zip(positions, yaws, strict=True))]
+        return self.t["visualization_msgs/msg/MarkerArray"](markers=markers)
+
+    def people_markers(self, ns: int, seq: int, person: FloatArray | None,
+                       pedestrians: FloatArray, radius: float) -> Any:
+        """visualization_msgs/MarkerArray: people as upright cylinders of their body's size
+        (1.7 m tall): the person leading (namespace ``person``, id 0) and the crowd
+        (namespace ``pedestrians``, id k)."""
+        header = self.header(ns, seq)
+        d, tall = 2 * radius, PERSON_HEIGHT
+        walkers = [("person", 0, person)] if person is not None else []
+        walkers += [("pedestrians", k, p) for k, p in enumerate(pedestrians)]
+        markers = [self.marker(header, name, k, 3, 0,  # CYLINDER, ADD
+                               self.pose(float(p[0]), float(p[1]), 0.0, tall / 2), (d, d, tall),
+                               self._colours[name], [])
+                   for name, k, p in walkers]
         return self.t["visualization_msgs/msg/MarkerArray"](markers=markers)
 
     def force_markers(self, ns: int, seq: int, followers: FloatArray,

@@ -17,6 +17,14 @@ FOLLOWER: Colour = (31, 119, 180)
 """Followers: blue."""
 TRAIL: Colour = (244, 170, 170)
 """The leader's trail: light red."""
+PERSON: Colour = (140, 20, 75)
+"""A person as the leader: dark magenta, drawn at its true size (about 0.44 m across)."""
+PEDESTRIAN: Colour = (150, 150, 150)
+"""The crowd's pedestrians: grey."""
+PERSONAL_SPACE: Colour = (225, 190, 210)
+"""The ring of the person's personal space (1.2 m, Hall's personal zone)."""
+PERSONAL_SPACE_RADIUS = 1.2
+"""Radius (m) of the drawn personal-space ring."""
 CONTACT: Colour = (20, 20, 20)
 """Ring around a robot that touches another."""
 RULE_COLOURS: dict[str, Colour] = {

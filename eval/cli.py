@@ -13,6 +13,7 @@ from boids_env.config import PATHS, PRESETS, EnvConfig
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
 from boids_env.world.realism import REALISMS
+from boids_env.world.scenario import LEADERS
 
 MAX_FAST = 1000.0
 """Largest ``--fast`` speed-up of the live window (times real time)."""
@@ -20,9 +21,10 @@ TRUST_HELP = ("load a model .zip through Stable-Baselines3's own load, which unp
               "objects stored in the file and so runs any code they carry: only for files you "
               "trust. Without it a zip acts from its weights alone or is refused (see the "
               "README, 'Model files you did not make')")
-POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
-               "shipped PPO followers), learned-study (PPO on the study's reward alone), an "
-               "SB3 model .zip, or module:object (a Policy instance, class or factory)")
+POLICY_HELP = ("reynolds (default), reynolds@boids_ros or reynolds@proxemic (a preset), "
+               "random, learned (the shipped PPO followers), learned-study (PPO on the study's "
+               "reward alone), learned-person (PPO following a person), an SB3 model .zip, "
+               "or module:object (a Policy instance, class or factory)")
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
@@ -91,6 +93,16 @@ def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) ->
                    help="where the leader starts (m; the scene's, or 0,0)")
     p.add_argument("--start-heading", type=float, default=None, metavar="DEG",
                    help="direction the leader faces at the start; the grid lies behind it")
+    p.add_argument("--leader", choices=LEADERS, default=None,
+                   help="who leads: robot (the study's), person (a pedestrian walking the path "
+                   "with JuPedSim, people extra; with --path external, walked by hand) or "
+                   "trajectory (a recorded walk, --leader-trajectory)")
+    p.add_argument("--leader-trajectory", default=None, metavar="CSV",
+                   help="a recorded walk to replay as the leader: a CSV of t,x,y (s, m) on the "
+                   "episode's clock, or doorway_walk (shipped); implies --leader trajectory")
+    p.add_argument("--crowd", type=int, default=None, metavar="N",
+                   help="N pedestrians walking to random goals through the scene (people "
+                   "extra; 0)")
     p.add_argument("--set", type=parse_setting, action="append", default=[],
                    metavar="FIELD=VALUE", help="any env config field (e.g. lidar_rays=16, "
                    "static_slots=2, obs_noise=0.02); repeatable")
@@ -212,9 +224,12 @@ def _check_run_flags(args: argparse.Namespace) -> None:
 
 def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
     fields: dict[str, Any] = {}
-    for name in ("robots", "leader_speed", "path", "scene", "start", "start_heading"):
+    for name in ("robots", "leader_speed", "path", "scene", "start", "start_heading", "leader",
+                 "leader_trajectory", "crowd"):
         if getattr(args, name) is not None:
             fields[name] = getattr(args, name)
+    if args.leader_trajectory is not None:
+        fields.setdefault("leader", "trajectory")
     if args.map is not None:
         if args.scene is not None:
             raise ValueError("give --scene or --map, not both (a map is a scene)")
@@ -233,6 +248,12 @@ def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
     if args.realism is not None:
         fields["realism"] = args.realism
     return _with_settings(fields, args.set)
+
+
+def _needs_people(fields: dict[str, Any]) -> bool:
+    """Whether the pedestrian model runs: a person walking a path or a crowd."""
+    walking = fields.get("leader") == "person" and fields.get("path") != "external"
+    return walking or bool(fields.get("crowd"))
 
 
 def _with_settings(fields: dict[str, Any], settings: list[tuple[str, Any]]) -> dict[str, Any]:
@@ -273,6 +294,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 0
     needs += ["render"] if args.video else []
     needs += ["ros"] if args.bag or args.mcap else []
+    needs += ["people"] if _needs_people(fields) else []
     require(*needs, purpose="boids run" + " --video" * bool(args.video) + " --bag" * args.bag
             + " --mcap" * args.mcap + (f" --policy {args.policy}" if "train" in needs else ""))
     from boids_env.eval.run import run
@@ -298,8 +320,8 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="preset of a bare 'reynolds' policy (paper)")
     p.add_argument("--suite", default="paper", help="paper (default), robustness, "
-                   "generalisation (the learned policy's trained and unseen cases), or a TOML "
-                   "file")
+                   "generalisation (the learned policy's trained and unseen cases), scenes, "
+                   "person (a person leading: speed, group size, crowd), or a TOML file")
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=None, help="seeds 0..N-1 (suite's: 5)")
     seeds.add_argument("--blocks", type=int, default=None, metavar="K",

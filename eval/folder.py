@@ -31,7 +31,7 @@ RUNNER_OUTPUTS = ("episodes.jsonl", "errors.jsonl", "results.parquet", "results.
 """What the runner writes (the report adds its own, recorded when written)."""
 REPORT_OUTPUTS = ("report.md", "report.html", "figures", "stats_anova.csv", "stats_tukey.csv",
                   "stats_tukey_study.csv", "policy_comparison.csv", "policy_verdicts.csv",
-                  "safety.csv", "blocks.csv")
+                  "safety.csv", "blocks.csv", "proxemics.csv", "person_trade_offs.csv")
 """What ``boids report`` writes (besides ``verdicts_<policy>.csv``)."""
 LEGACY_OUTPUTS = (*RUNNER_OUTPUTS, "stats_anova.csv", "stats_tukey.csv", "policy_comparison.csv",
                   "verdicts.csv", "report.md", "report.html", "figures")

@@ -23,6 +23,7 @@ from boids_env.eval.compare import verdicts as policy_verdicts
 from boids_env.eval.folder import REPORT_OUTPUTS, record_files
 from boids_env.eval.html import write_html
 from boids_env.eval.markup import escape
+from boids_env.eval.people_report import has_people, person_section
 from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, pair_difference
 from boids_env.eval.study import (
     GROUP_OF_RQ,
@@ -53,7 +54,8 @@ SAFETY_METRICS = ("touching_fraction", "mean_contact_pairs", "contacts_follower"
 distance."""
 assert set(SAFETY_KEYS) <= set(SAFETY_METRICS)
 OWN_CSVS = ("stats_anova.csv", "stats_tukey.csv", "stats_tukey_study.csv",
-            "policy_comparison.csv", "policy_verdicts.csv", "safety.csv", "blocks.csv")
+            "policy_comparison.csv", "policy_verdicts.csv", "safety.csv", "blocks.csv",
+            "proxemics.csv", "person_trade_offs.csv")
 """CSVs a build may write (besides ``verdicts_<policy>.csv``); stale ones are removed."""
 assert set(OWN_CSVS) <= set(REPORT_OUTPUTS)
 
@@ -300,6 +302,8 @@ def build_report(out: str | Path) -> Path:
            "(the leader included) is in contact; `contacts_*`: contact onsets per episode; "
            "`wall_fraction`: time some robot touches a wall; distances in m.", "",
            _md_table(csvs["safety.csv"]), ""]
+    if has_people(table):
+        md += person_section(table, summary_table, _md_table, csvs, summary)
     if len(policies) > 1:
         md += _comparison_section(table, policies, csvs, summary)
     md += _stats_section(anova, tukey, rule)

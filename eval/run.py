@@ -33,6 +33,18 @@ METRIC_ROWS = (("V_sep", "separation violation (study)"), ("V_coh", "cohesion vi
                ("no_sight_fraction", "time a follower cannot see the leader"),
                ("mean_nn_distance", "nearest-neighbour distance, mean (m)"),
                ("leader_path_deviation", "leader off its scripted path, mean (m)"),
+               ("intimate_fraction", "time within 0.45 m of the person (Hall)"),
+               ("personal_fraction", "time 0.45-1.2 m from the person"),
+               ("social_fraction", "time 1.2-3.6 m from the person"),
+               ("public_fraction", "time beyond 3.6 m of the person"),
+               ("min_person_distance", "closest robot-person centres (m)"),
+               ("person_contacts", "contact onsets robot-person"),
+               ("person_contact_fraction", "time some robot touches the person"),
+               ("cut_in_fraction", "time in the person's path (2 s ahead)"),
+               ("pedestrian_intimate_fraction", "time within 0.45 m of a pedestrian"),
+               ("pedestrian_personal_fraction", "time within 1.2 m of a pedestrian"),
+               ("min_pedestrian_distance", "closest robot-pedestrian centres (m)"),
+               ("pedestrian_contacts", "contact onsets robot-pedestrian"),
                ("duration", "episode length T (s)"))
 
 
@@ -43,7 +55,8 @@ def metrics_table(metrics: dict[str, Any]) -> str:
         if key not in metrics:
             continue
         value = metrics[key]
-        if isinstance(value, float) and key.startswith("contacts_") and value.is_integer():
+        count = key.startswith("contacts_") or key.endswith("_contacts")
+        if count and isinstance(value, float) and value.is_integer():
             value = int(value)  # a count
         if isinstance(value, float) and not math.isfinite(value):
             shown = "n/a"  # does not apply: no scripted path to deviate from (external)

@@ -211,8 +211,40 @@ SCENES = Suite("scenes", tuple(
 the path, a door, a corridor loop, a pillar field and a lab's map. The Reynolds policy
 avoids obstacles in all but the arena."""
 
+PERSON_BASE = {"scene": "doorway", "leader": "person", "robots": 13, "leader_speed": 0.5}
+"""The ``person`` suite's controlled values: a person walking the doorway scene's path at the
+robots' top speed (0.5 m/s preferred), 13 robots, no crowd."""
+
+PERSON = Suite("person", tuple(
+    _sweep("speed", "leader_speed", [(s, {"leader_speed": float(s)})
+                                     for s in ("0.4", "0.5", "0.6", "0.75")], PERSON_BASE)
+    + _sweep("group_size", "robots", [(n, {"robots": int(n)}) for n in ("7", "13", "19")],
+             PERSON_BASE)
+    + _sweep("crowd", "crowd", [(n, {"crowd": int(n)}) for n in ("0", "5", "10", "20")],
+             PERSON_BASE)))
+"""The study's questions with a person leading (the ``people`` extra): the person's preferred
+walking speed against the robots' top speed of 0.5 m/s (0.8×, 1×, 1.2×, 1.5×: the study's
+RQ1 trade-off), the group size, and the crowd's density (0, 5, 10, 20 pedestrians in the
+doorway scene's 71.5 m² of floor: 0 to 0.28 per m²). Run it for ``reynolds`` and
+``reynolds@proxemic``."""
+
+_FOLLOW = {"leader": "person", "robots": 13}
+PERSON_LEARNED = Suite("person_learned", (
+    Case("square 0.55", "trained", "case", "square 0.55", {**_FOLLOW, "leader_speed": 0.55}),
+    Case("circle 0.5", "trained", "case", "circle 0.5",
+         {**_FOLLOW, "path": "circle", "leader_speed": 0.5}),
+    Case("figure-eight 0.6", "trained", "case", "figure-eight 0.6",
+         {**_FOLLOW, "path": "figure_eight", "leader_speed": 0.6}),
+    Case("doorway", "unseen", "case", "doorway", {**_FOLLOW, "scene": "doorway"}),
+    Case("doorway walk replayed", "unseen", "case", "doorway walk replayed",
+         {**_FOLLOW, "scene": "doorway", "leader": "trajectory",
+          "leader_trajectory": "doorway_walk"})))
+"""The ``learned-person`` policy's bar: a person walking three paths of the kind its recipe
+trains on (``trained``) and two it never saw (``unseen``: the doorway scene, and the shipped
+walk replayed there), 13 robots."""
+
 SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION,
-          "scenes": SCENES}
+          "scenes": SCENES, "person": PERSON, "person_learned": PERSON_LEARNED}
 
 
 def load_suite(spec: str | Path) -> Suite:

@@ -85,8 +85,12 @@ def frames(recording: Recording, *, frame_every: int = FRAME_EVERY, view: str = 
     try:
         for s in range(last + 1):
             overlays = {name: vec[s] for name, vec in (recording.forces or {}).items()}
+            sc = cfg.scenario
+            crowd = None if recording.pedestrians is None else recording.pedestrians[s]
             scene = Frame(recording.positions[s], s, cfg.world.robot_radius, status[s],
-                          cfg.observation.horizon, overlays)
+                          cfg.observation.horizon, overlays, (),
+                          None if sc.leader == "robot" else sc.person_radius, crowd,
+                          sc.person_radius)
             shown = s % frame_every == 0 or s == last
             if shown:
                 image = renderer.draw(scene)

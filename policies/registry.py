@@ -14,7 +14,7 @@ from boids_env.policies.base import Policy
 from boids_env.policies.random_policy import RandomPolicy
 from boids_env.policies.reynolds import ReynoldsPolicy
 
-BUILTIN = ("reynolds", "random", "learned", "learned-study")
+BUILTIN = ("reynolds", "random", "learned", "learned-study", "learned-person")
 LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_safe.zip"
 """The shipped PPO follower policy (recipes ``ppo_safe`` then ``ppo_safe_stage2``: leader frame,
 actions relative to the leader's velocity, safe reward with the cohesion gap, varied paths,
@@ -22,7 +22,11 @@ sizes and speeds); acts in numpy (its zip carries the actor), no extra needed.""
 STUDY_MODEL = Path(__file__).parent / "models" / "ppo_study.zip"
 """PPO trained on the study's reward alone (recipe ``ppo_study``): it wins on the study's metrics
 while its robots touch most of the time; kept to show what optimising those metrics does."""
-MODELS = {"learned": LEARNED_MODEL, "learned-study": STUDY_MODEL}
+PERSON_MODEL = Path(__file__).parent / "models" / "ppo_person.zip"
+"""The shipped follower policy for a person leading (recipe ``ppo_person``: ``learned``
+trained on for 3 M steps with a walking person and the intrusion reward); acts in numpy."""
+MODELS = {"learned": LEARNED_MODEL, "learned-study": STUDY_MODEL,
+          "learned-person": PERSON_MODEL}
 
 
 def split_preset(spec: str, preset: str = "paper") -> tuple[str, str]:

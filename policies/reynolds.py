@@ -18,6 +18,19 @@ Beyond the study (on in any scene but the study's empty arena, see ``obstacle_av
   s_m = clip(1 − (d_m − u_m·lookahead) / obstacle_distance, 0, 1)
 - served first: a = clip(w_obs·F_obs, max_force), F = a + clip(Σ w·F, max_force − |a|)
   (Reynolds' prioritised acceleration allocation: near a wall, avoiding it wins).
+- pedestrians (with a crowd's pedestrian slots): the nearest point of each pedestrian's body
+  is one more obstacle point of F_obs, so followers steer around people as around walls.
+
+A person as the leader: the study's leader term seeks the leader's centre, so out of the box
+the flock follows a person as it follows a robot, as close as separation lets it (the
+person is one more neighbour its separation pushes from below 0.7 m). The opt-in
+proxemics-aware variant (``personal_space`` s > 0, preset ``proxemic``: 1.2 m, Hall's personal
+zone) replaces it with
+- leader     F_lead = r − s·r/|r| (r = p_leader − p_i): it seeks the circle of radius s
+  around the person, pulling in from outside and pushing out from inside, plus, while the
+  person walks (speed u ≥ 0.2 m/s, direction e), a sideways push (s − |c|)·sign(c)·n out of
+  the strip ahead of it (0 < a ≤ 2 s·u + s, |c| < s, with a and c the follower's position
+  along e and across it, n the unit normal on the follower's side).
 """
 
 from __future__ import annotations
@@ -82,6 +95,51 @@ def reynolds_forces(rel: FloatArray, vel: FloatArray, valid: npt.NDArray[np.bool
             "leader": np.array(leader_offset, dtype=float)}
 
 
+PATH_TIME = 2.0
+"""The proxemics-aware leader term keeps this many seconds of the person's walking clear."""
+WALKING_SPEED = 0.2
+"""The person counts as walking from this speed (m/s) on."""
+
+
+def proxemic_leader_force(leader_offset: FloatArray, leader_velocity: FloatArray,
+                          space: float) -> FloatArray:
+    """The proxemics-aware leader term (F, 2) in metres: towards the circle of radius
+    ``space`` around the person, and sideways out of its path ahead (see the module
+    docstring).
+
+    Args:
+        leader_offset: (F, 2) the person's position relative to each follower (m).
+        leader_velocity: (F, 2) the person's velocity as each follower observes it (m/s).
+        space: the personal space's radius s (m).
+    """
+    rx, ry = leader_offset[:, 0], leader_offset[:, 1]
+    dist = np.sqrt(rx * rx + ry * ry)
+    scale = np.where(dist > 0, 1.0 - space / np.where(dist > 0, dist, 1.0), 0.0)
+    ring = leader_offset * scale[:, None]
+    vx, vy = leader_velocity[:, 0], leader_velocity[:, 1]
+    speed = np.sqrt(vx * vx + vy * vy)
+    walking = speed >= WALKING_SPEED
+    ex = np.where(walking, vx / np.where(walking, speed, 1.0), 0.0)
+    ey = np.where(walking, vy / np.where(walking, speed, 1.0), 0.0)
+    along = -(rx * ex + ry * ey)  # the follower relative to the person, along its walk
+    across = -(ry * ex - rx * ey)  # … and to its left (+) or right (−)
+    ahead = walking & (along > 0) & (along <= PATH_TIME * speed + space) & (
+        np.abs(across) < space)
+    side = np.where(across >= 0, 1.0, -1.0)
+    push = np.where(ahead, (space - np.abs(across)) * side, 0.0)
+    return ring + np.stack([-ey * push, ex * push], axis=1)
+
+
+def pedestrian_points(slots: FloatArray, radius: float) -> tuple[FloatArray,
+                                                                 npt.NDArray[np.bool_]]:
+    """The nearest point of each pedestrian's body (F, P, 2) and which slots hold one, from
+    pedestrian slots (F, P, 5) (a follower inside a body gets its centre)."""
+    rel, valid = slots[..., 0:2], slots[..., 4] > 0.5
+    dist = np.sqrt(rel[..., 0] * rel[..., 0] + rel[..., 1] * rel[..., 1])
+    scale = np.maximum(dist - radius, 0.0) / np.where(dist > 0, dist, 1.0)
+    return rel * scale[..., None], valid
+
+
 def obstacle_force(offsets: FloatArray, valid: npt.NDArray[np.bool_], own_velocity: FloatArray,
                    p: ReynoldsParams) -> FloatArray:
     """The unweighted obstacle-avoidance force (F, 2) from the static slots.
@@ -89,13 +147,16 @@ def obstacle_force(offsets: FloatArray, valid: npt.NDArray[np.bool_], own_veloci
     Args:
         offsets: (F, M, 2) offsets from each follower to the nearest surface points (m).
         valid: (F, M) which slots hold a point.
-        own_velocity: (F, 2) each follower's velocity.
+        own_velocity: (F, 2) each follower's velocity, or (F, M, 2) its velocity relative to
+            each point (a pedestrian's moves).
         p: controller parameters.
     """
     dist = np.sqrt(np.einsum("fmd,fmd->fm", offsets, offsets))
     towards = np.divide(offsets, dist[..., None], out=np.zeros_like(offsets),
                         where=(dist > 0)[..., None])
-    approach = np.maximum(np.einsum("fmd,fd->fm", towards, own_velocity), 0.0)
+    closing = (np.einsum("fmd,fmd->fm", towards, own_velocity) if own_velocity.ndim == 3
+               else np.einsum("fmd,fd->fm", towards, own_velocity))
+    approach = np.maximum(closing, 0.0)
     effective = dist - approach * p.obstacle_lookahead
     strength = np.clip(1.0 - effective / p.obstacle_distance, 0.0, 1.0) * valid
     return -p.max_force * np.einsum("fm,fmd->fd", strength, towards)
@@ -149,6 +210,7 @@ class ReynoldsPolicy(BatchPolicy):
         self.forces: dict[str, FloatArray] = {}
         self.layout = layout
         self.avoid = bool(self.params.obstacle_avoidance) and bool(layout and layout.static)
+        self.pedestrian_radius = 0.22
         self._steps = 0
 
     def bind(self, env: Any) -> None:
@@ -159,6 +221,7 @@ class ReynoldsPolicy(BatchPolicy):
         auto = config.world.scene != "arena"
         wanted = self.params.obstacle_avoidance
         self.avoid = bool(self.layout.static) and (auto if wanted is None else wanted)
+        self.pedestrian_radius = config.scenario.person_radius
 
     def reset(self, seed: int | None = None) -> None:
         self._steps = 0
@@ -174,7 +237,8 @@ class ReynoldsPolicy(BatchPolicy):
         p = self.params
         holding = self._steps * p.dt < p.startup_time - 1e-9
         self._steps += 1
-        rules = (*RULES, OBSTACLE) if self.avoid else RULES
+        people = bool(layout.pedestrians)
+        rules = (*RULES, OBSTACLE) if self.avoid or people else RULES
         if holding:
             self.forces = {name: np.zeros((len(obs), 2)) for name in rules}
             return np.zeros((len(obs), 2), dtype=np.float32)
@@ -183,8 +247,21 @@ class ReynoldsPolicy(BatchPolicy):
         forces = reynolds_forces(layout.slot_position(slots), layout.slot_velocity(slots),
                                  layout.slot_valid(slots) > 0.5, own,
                                  obs[:, layout.leader_position], p)
-        if self.avoid:
-            static = layout.static_slots(obs)
-            forces[OBSTACLE] = obstacle_force(static[..., :2], static[..., 2] > 0.5, own, p)
+        if p.personal_space > 0:
+            forces["leader"] = proxemic_leader_force(obs[:, layout.leader_position],
+                                                     obs[:, layout.leader_velocity],
+                                                     p.personal_space)
+        if self.avoid or people:
+            static = layout.static_slots(obs) if self.avoid else np.zeros((len(obs), 0, 3))
+            points, valid, moving = static[..., :2], static[..., 2] > 0.5, own
+            if people:
+                slots = layout.pedestrian_slots(obs)
+                walkers, near = pedestrian_points(slots, self.pedestrian_radius)
+                points = np.concatenate([points, walkers], axis=1)
+                valid = np.concatenate([valid, near], axis=1)
+                relative = own[:, None, :] - layout.slot_velocity(slots)  # closing on people
+                moving = np.concatenate([np.broadcast_to(own[:, None, :], static[..., :2].shape),
+                                         relative], axis=1)
+            forces[OBSTACLE] = obstacle_force(points, valid, moving, p)
         command, self.forces = reynolds_command(forces, own, p)
         return command.astype(np.float32)

@@ -258,7 +258,13 @@ def make_leader(scenario: ScenarioConfig, rng: np.random.Generator, dt: float | 
 
 def preview_path(scenario: ScenarioConfig, dt: float | None = None) -> Vec | None:
     """The leader's scripted path (M, 2, world frame) without drawing anything: None for a
-    random or external path."""
+    random or external path; a recorded walk's samples for ``leader="trajectory"`` (a person
+    walks the path's corners: its path is the robot's)."""
+    if scenario.leader == "trajectory":
+        from boids_env.world.walks import read_walk
+
+        assert scenario.leader_trajectory is not None
+        return np.array(read_walk(scenario.leader_trajectory)[1])
     if scenario.path in ("random_waypoints", "external"):
         return None
     return make_leader(scenario, np.random.default_rng(0), dt).reference_path()

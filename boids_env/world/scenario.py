@@ -21,7 +21,8 @@ from boids_env.checks import set_field as _set
 from boids_env.vectors import times_matrix
 from boids_env.world.layout import PAPER_LAYOUTS, follower_cells, grid_cells
 
-__all__ = ["CURVE_SPEED_FACTOR", "LEADER_MAX_SPEED", "PAPER_LAYOUTS", "PATHS", "ScenarioConfig",
+__all__ = ["CURVE_SPEED_FACTOR", "LEADERS", "LEADER_MAX_SPEED", "PAPER_LAYOUTS", "PATHS",
+           "ScenarioConfig",
            "grid_cells", "initial_positions", "layout_extent", "layout_heading", "path_extent",
            "scene_matrix", "step_limit"]
 
@@ -31,6 +32,9 @@ CURVE_SPEED_FACTOR = 1.5
 """A curve-following leader may command up to this × ``leader_speed`` to regain its path."""
 PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "external")
 """Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
+LEADERS = ("robot", "person", "trajectory")
+"""Who leads: the study's robot (default), a person walked by the pedestrian model along the
+path (opt-in), or a recorded walk replayed from ``leader_trajectory`` (opt-in)."""
 
 
 
@@ -89,7 +93,31 @@ class ScenarioConfig:
     grid lies behind it. None: the study's (+y, turned with ``path_rotation``) in the arena,
     the direction of the path's first target in any other scene."""
 
+    leader: str = "robot"
+    """Who leads, one of LEADERS: ``robot`` (the study's), ``person`` (a pedestrian walked by
+    JuPedSim to the corners of ``path`` at ``leader_speed`` as preferred walking speed, with a
+    varying gait and pauses; with ``path="external"`` the keyboard or a script walks it) or
+    ``trajectory`` (a recorded walk, ``leader_trajectory``). A person is a kinematic disc of
+    ``person_radius`` that robots collide with and cannot push. Opt-in."""
+    leader_trajectory: str | None = None
+    """The recorded walk for ``leader="trajectory"``: a CSV of ``t, x, y`` (s, m), its time the
+    episode's; the leader starts at its first row (``start`` is set from it)."""
+    person_radius: float = 0.22
+    """Body radius (m) of the person and of the crowd's pedestrians (adults: 0.2-0.25 m)."""
+    gait_variation: float = 0.15
+    """Standard deviation of the person's speed factor around its preferred speed (relative;
+    a slowly varying, seeded Ornstein-Uhlenbeck factor with a 2 s correlation time)."""
+    goal_pause: float = 1.0
+    """Mean time (s) the person stops at each corner of its path (drawn uniformly in
+    [0, 2·goal_pause] per corner; not on curves)."""
+    crowd: int = 0
+    """Other pedestrians walking through the scene to random goals (0: none). Opt-in; they
+    are moving obstacles for the robots (observations, range sensor, metrics)."""
+    crowd_speed: float = 1.0
+    """The pedestrians' preferred walking speed (m/s), each drawn within ±20 %."""
+
     def __post_init__(self) -> None:
+        self._check_people()
         _set(self, "robots", _integer("robots", self.robots, 2, 10_000))
         _set(self, "leader_speed", _number("leader_speed", self.leader_speed, 0.0,
                                            LEADER_MAX_SPEED, lo_open=True, unit="m/s"))
@@ -125,6 +153,41 @@ class ScenarioConfig:
         if self.start_heading is not None:
             _set(self, "start_heading", _number("start_heading", self.start_heading, -360, 360,
                                                 unit="degrees"))
+
+
+    def _check_people(self) -> None:
+        """The person and crowd fields (``leader`` ... ``crowd_speed``)."""
+        if self.leader not in LEADERS:
+            raise ValueError(f"leader must be one of {LEADERS}, got {self.leader!r}")
+        _set(self, "person_radius", _number("person_radius", self.person_radius, 0.05, 0.5,
+                                            unit="m"))
+        _set(self, "gait_variation", _number("gait_variation", self.gait_variation, 0.0, 0.5))
+        _set(self, "goal_pause", _number("goal_pause", self.goal_pause, 0.0, 60, unit="s"))
+        _set(self, "crowd", _integer("crowd", self.crowd, 0, 500))
+        _set(self, "crowd_speed", _number("crowd_speed", self.crowd_speed, 0.0, 2.0,
+                                          lo_open=True, unit="m/s"))
+        if self.leader != "trajectory":
+            if self.leader_trajectory is not None:
+                raise ValueError(f"leader_trajectory is a walk for leader='trajectory', but "
+                                 f"leader={self.leader!r}; give leader='trajectory' too")
+            return
+        if not isinstance(self.leader_trajectory, str) or not self.leader_trajectory:
+            raise ValueError(f"leader='trajectory' needs leader_trajectory, the path of a CSV "
+                             f"of t,x,y, got {self.leader_trajectory!r}")
+        from pathlib import Path
+
+        from boids_env.world.walks import WALKS, read_walk
+
+        _, points = read_walk(self.leader_trajectory)
+        if self.leader_trajectory not in WALKS:
+            _set(self, "leader_trajectory", str(Path(self.leader_trajectory).resolve()))
+        _set(self, "start", (float(points[0][0]), float(points[0][1])))
+        if self.start_heading is None:
+            steps = points[1:] - points[0]
+            moving = np.flatnonzero(np.hypot(steps[:, 0], steps[:, 1]) > 1e-6)
+            if len(moving):
+                dx, dy = steps[moving[0]]
+                _set(self, "start_heading", math.degrees(math.atan2(dy, dx)))
 
 
 def _waypoints(value: Any, name: str = "waypoints") -> tuple[tuple[float, float], ...]:

@@ -29,6 +29,13 @@ from boids_env.world.scene import Scene
 
 FloatArray = npt.NDArray[np.float64]
 
+PERSON_MASS = 70.0
+"""Mass (kg) of a person's body (the leader person and every pedestrian): a 0.18 kg robot
+pushing it with its 1 N drive moves it by micrometres."""
+PERSON_DRIVE = 20_000.0
+"""Largest force (N) with which a person's body holds the velocity the pedestrian model gives
+it against robots (its body is given that velocity at each period's start): a robot pushing
+with its 1 N drive does not move it."""
 WALL_THICKNESS = 1.0
 """Radius (m) of the wall segments; their inner faces are at ±arena_half_size. Thick walls:
 a robot would have to travel this far in one physics substep to pass through one (the config
@@ -75,10 +82,18 @@ class World:
         config: the physical world's section of the env config.
         positions: (N, 2) initial robot positions (m), the leader first.
         scene: the static geometry (None: the scene ``config.scene`` names).
+        leader_radius: a person leads (None: a robot): robot 0 is then a disc of this
+            radius (m) and :data:`PERSON_MASS` tracking its commanded velocity with up to
+            :data:`PERSON_DRIVE`; robots collide with it rigidly and cannot push it.
+        pedestrians: (P, 2) initial positions of the crowd (m): discs like the person's, of
+            ``pedestrian_radius``, tracking :meth:`step`'s ``pedestrian_velocities``.
+        pedestrian_radius: the pedestrians' radius (m).
     """
 
     def __init__(self, config: WorldConfig, positions: npt.ArrayLike,
-                 scene: Scene | None = None) -> None:
+                 scene: Scene | None = None, *, leader_radius: float | None = None,
+                 pedestrians: npt.ArrayLike | None = None,
+                 pedestrian_radius: float = 0.22) -> None:
         self.config = config
         if scene is None:
             from boids_env.world.scenes import load_scene
@@ -100,32 +115,51 @@ class World:
         h = config.dt / config.substeps
         self._schedule = [h] * (config.substeps - 1) + [h / 2, h / 2]
         self._add_scene()
-        self._robots: list[pymunk.Body] = []
-        for p in start:
-            body = pymunk.Body(config.robot_mass, float("inf"))
-            body.position = (float(p[0]), float(p[1]))
-            shape = pymunk.Circle(body, config.robot_radius)
-            shape.elasticity = 0.0
-            shape.friction = 0.0
-            self.space.add(body, shape)
-            self._robots.append(body)
-        self._controls: list[pymunk.Body] = []
-        for robot in self._robots:
-            control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-            control.position = robot.position
-            joint = pymunk.PivotJoint(control, robot, (0, 0), (0, 0))
-            joint.max_bias = 0.0  # velocity tracking only: no pull towards the control body
-            joint.max_force = config.drive_force
-            self.space.add(control, joint)
-            self._controls.append(control)
+        self.person_leader = person = leader_radius is not None
+        self._robots = [self._add_disc(p, PERSON_MASS if k == 0 and person else
+                                       config.robot_mass, leader_radius if k == 0 and person
+                                       else config.robot_radius) for k, p in enumerate(start)]
+        self._controls = [self._add_control(robot, PERSON_DRIVE if k == 0 and person else
+                                            config.drive_force)
+                          for k, robot in enumerate(self._robots)]
+        crowd = np.zeros((0, 2)) if pedestrians is None else np.asarray(pedestrians, float)
+        crowd = crowd.reshape(-1, 2)
+        self.p = len(crowd)
+        self.pedestrian_radius = pedestrian_radius
+        walkers = [self._add_disc(q, PERSON_MASS, pedestrian_radius) for q in crowd]
+        self._pedestrians = walkers + [self._add_control(b, PERSON_DRIVE) for b in walkers]
         self._fields = batch.BodyFields.POSITION | batch.BodyFields.VELOCITY
         self._check_body_order()
         # One velocity per body in batch order; written in place and handed to pymunk each step.
-        self._write_velocities = np.zeros((2 * self.n + 1, 2))
+        self._write_velocities = np.zeros((2 * self.n + 2 * self.p + 1, 2))
         self.commanded = np.zeros((self.n, 2))
         self.positions = start.copy()
         self.velocities = np.zeros((self.n, 2))
+        self.pedestrian_positions = crowd.reshape(-1, 2).copy()
+        self.pedestrian_velocities = np.zeros((self.p, 2))
         self._refresh()
+
+    def _add_disc(self, position: FloatArray, mass: float, radius: float) -> pymunk.Body:
+        """A rigid, frictionless disc of ``mass`` with infinite moment (a holonomic robot or
+        a person does not spin) at ``position``."""
+        body = pymunk.Body(mass, float("inf"))
+        body.position = (float(position[0]), float(position[1]))
+        shape = pymunk.Circle(body, radius)
+        shape.elasticity = 0.0
+        shape.friction = 0.0
+        self.space.add(body, shape)
+        return body
+
+    def _add_control(self, body: pymunk.Body, drive: float) -> pymunk.Body:
+        """The kinematic control body whose velocity ``body`` tracks with at most ``drive``
+        (N)."""
+        control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+        control.position = body.position
+        joint = pymunk.PivotJoint(control, body, (0, 0), (0, 0))
+        joint.max_bias = 0.0  # velocity tracking only: no pull towards the control body
+        joint.max_force = drive
+        self.space.add(control, joint)
+        return control
 
     def _add_scene(self) -> None:
         """Static shapes: the box's walls as thick segments whose inner faces are the box
@@ -158,7 +192,8 @@ class World:
         buf.clear()
         batch.get_space_bodies(self.space, batch.BodyFields.BODY_ID, buf)
         ids = np.frombuffer(buf.int_buf(), dtype=np.uintp)
-        expected = [b.id for b in self._robots + self._controls] + [self.space.static_body.id]
+        bodies = self._robots + self._controls + self._pedestrians
+        expected = [b.id for b in bodies] + [self.space.static_body.id]
         if list(ids) != expected:  # pragma: no cover - guards against a pymunk change
             raise RuntimeError("pymunk.batch body order changed; World cannot batch its I/O")
 
@@ -169,15 +204,31 @@ class World:
         data = np.frombuffer(read.float_buf(), dtype=np.float64).reshape(-1, 4)
         self.positions = data[: self.n, :2].copy()
         self.velocities = data[: self.n, 2:].copy()
+        if self.p:
+            crowd = data[2 * self.n : 2 * self.n + self.p]  # then their control bodies
+            self.pedestrian_positions = crowd[:, :2].copy()
+            self.pedestrian_velocities = crowd[:, 2:].copy()
 
-    def step(self, commanded: FloatArray, executed: FloatArray | None = None) -> None:
+    def step(self, commanded: FloatArray, executed: FloatArray | None = None,
+             pedestrian_velocities: FloatArray | None = None) -> None:
         """Commands every robot's velocity (N, 2) and advances one control period. With
         ``executed`` the robots track that instead (realism: noise, stall, latency) while
-        :attr:`commanded` keeps the command as sent."""
+        :attr:`commanded` keeps the command as sent. A person leader moves exactly at its
+        command; the crowd at ``pedestrian_velocities`` (P, 2) (zero when not given)."""
         self.commanded = np.array(commanded, dtype=float)
         w = self._write_velocities
         w[: self.n] = self.velocities  # unchanged: batch writes every body's velocity
         w[self.n : 2 * self.n] = self.commanded if executed is None else executed
+        # People walk as told from the period's first substep (chipmunk moves a body by its
+        # velocity before its joints act, so a drive lags a substep): body and control body
+        # both get the velocity, the drive then only holds it against robots.
+        if self.person_leader:
+            w[0] = w[self.n] = self.commanded[0]  # and no robot realism for a person
+        if self.p:
+            n2, p = 2 * self.n, self.p
+            walk = 0.0 if pedestrian_velocities is None else pedestrian_velocities
+            w[n2 : n2 + p] = walk
+            w[n2 + p : n2 + 2 * p] = walk
         write = _buffers()[1]
         write.set_float_buf(w.reshape(-1))
         batch.set_space_bodies(self.space, batch.BodyFields.VELOCITY, write)
@@ -199,7 +250,9 @@ class World:
         return self.steps * self.config.dt
 
     def contacts(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-        """Robot pairs (i < j) touching each other, and robots touching static geometry."""
+        """Robot pairs (i < j) touching each other, and robots touching static geometry (a
+        person leader's pairs by robot radius too: its own contacts are in the proxemics
+        metrics)."""
         r = self.config.robot_radius
         pairs = cKDTree(self.positions).query_pairs(2 * r + CONTACT_TOLERANCE,
                                                     output_type="ndarray")

@@ -128,6 +128,13 @@ class SimNode:
         self.options = options
         self.env = BoidsEnv(**dict(options.env_fields))
         config = self.env.config
+        sc = config.scenario
+        if (sc.leader == "person" and sc.path != "external") or sc.crowd:
+            # the sim publishes the leader's next command ahead of stepping, which a
+            # pedestrian model only knows once it has stepped
+            raise ValueError("boids ros sim: a walking person (leader='person' with a path) "
+                             "and crowds are not supported; use leader='trajectory' (a "
+                             "recorded walk) or --path external with --leader person")
         self.robots = config.scenario.robots
         self.dt = config.world.dt
         self.agents = list(self.env.possible_agents)

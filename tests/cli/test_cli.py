@@ -174,7 +174,7 @@ def _recipes():
 
 
 def test_the_recipes_are_the_documented_ones():
-    assert _recipes() == ["ppo_safe", "ppo_safe_stage2", "ppo_study"]
+    assert _recipes() == ["ppo_person", "ppo_safe", "ppo_safe_stage2", "ppo_study"]
 
 
 @pytest.mark.parametrize("name", _recipes())
@@ -187,7 +187,7 @@ def test_every_shipped_recipe_builds_its_env(name):
     env.reset(seed=0)
     relative = config.env_fields.get("relative_actions", False)
     assert env.action_space("follower_1").high[0] == pytest.approx(1.0 if relative else 0.5)
-    assert relative == (name in ("ppo_safe", "ppo_safe_stage2"))
+    assert relative == (name in ("ppo_person", "ppo_safe", "ppo_safe_stage2"))
 
 
 def test_stage2_continues_a_ppo_safe_run():

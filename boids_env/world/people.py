@@ -1,0 +1,316 @@
+"""People in the world: the walkable area of a scene and the pedestrian model that walks the
+person (the leader, ``leader="person"``) and the crowd (``crowd=N``) through it.
+
+The pedestrian dynamics are JuPedSim's (the ``people`` extra): its anticipation velocity
+model (collision-free, velocity-based, with a reaction time that smooths turns and an
+anticipation of the others' motion) steps at :data:`PEDESTRIAN_DT` inside each control period.
+The person walks to its path's corners in turn at a preferred speed that varies slowly
+(a seeded Ornstein–Uhlenbeck factor around 1) and stops for a seeded while at each corner;
+pedestrians walk to random goals in the walkable area, a new one on arrival. Nobody here sees
+the robots (0.18 kg robots do not steer people): the world moves the people as kinematic
+bodies, and robots collide with them rigidly.
+
+Deterministic: JuPedSim's model is seeded from the episode's stream and every draw here
+comes from one ``np.random.Generator``; the same seed gives the same walk bit for bit (JuPedSim
+iterates its agents in the order they were added). A pickled :class:`People` rebuilds its
+simulation and replays its periods.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from boids_env.world.scene import Scene
+
+FloatArray = npt.NDArray[np.float64]
+
+PEDESTRIAN_DT = 0.01
+"""JuPedSim's iteration step (s), the library's recommended one; a control period of 0.1 s is
+ten iterations."""
+GAIT_TIME = 2.0
+"""Correlation time (s) of the person's speed factor (how long a faster or slower spell
+lasts)."""
+GAIT_RANGE = (0.5, 1.5)
+"""The speed factor is kept within these bounds (× the preferred speed)."""
+GOAL_REACHED = 0.3
+"""A person or pedestrian within this distance (m) of its goal has reached it."""
+ROBOT_ROOM = 0.05
+"""People keep their bodies this much (m) farther from each other and from walls than their
+own model asks (JuPedSim walks discs of radius + ROBOT_ROOM): two people never close a gap a
+robot (0.072 m across) could not leave, so a robot is never crushed between them."""
+WALL_BUFFER = 0.1
+"""Distance (m) people keep from walls and obstacles beyond their radius (JuPedSim's
+``wall_buffer_distance``): a robot (0.072 m across) still fits between a person and a wall."""
+CROWD_SPEED_SPREAD = (0.8, 1.2)
+"""Each pedestrian's preferred speed is ``crowd_speed`` × a uniform draw in these bounds."""
+CROWD_CLEARANCE = 1.0
+"""Pedestrians start at least this far (m) from every robot and from each other's bodies."""
+STUCK_TIME = 3.0
+"""A pedestrian that moved less than :data:`STUCK_DISTANCE` in this long (s) gives way: it
+picks a new goal near where it stands (velocity models jam in counterflow at a door)."""
+STUCK_DISTANCE = 0.2
+"""See :data:`STUCK_TIME` (m)."""
+GIVE_WAY_RADIUS = 3.0
+"""A pedestrian giving way picks its new goal within this distance (m)."""
+PLACEMENT_TRIES = 2_000
+"""Random start or goal draws tried before giving up."""
+
+
+def _require_jupedsim() -> Any:
+    from boids_env.extras import require
+
+    require("people", purpose="leader='person' (walking its path) and crowd > 0")
+    import jupedsim
+
+    return jupedsim
+
+
+def walkable_area(scene: Scene) -> Any:
+    """The scene's free floor as a shapely polygon (with holes): the box (or the scene's
+    bounds) less every capsule (buffered by its radius, polygons circumscribing the round
+    ends) and convex block; for a map, its free cells. The part containing most area is kept
+    when obstacles cut the floor in pieces."""
+    import shapely
+    from shapely.geometry import LineString, Point, Polygon, box
+
+    sides = 16  # a buffered circle is a polygon inscribed in it: grow it to circumscribe
+    grow = 1.0 / math.cos(math.pi / (4 * sides))
+    if scene.grid is not None:
+        floor = _free_cells(scene)
+    else:
+        floor = box(*scene.bounds)
+    solids = []
+    for a, b, r in zip(scene.a.tolist(), scene.b.tolist(), scene.radius.tolist(), strict=True):
+        shape = Point(a) if a == b else LineString([a, b])
+        solids.append(shape.buffer(max(r, 1e-6) * grow, quad_segs=sides))
+    solids += [Polygon(p) for p in scene.polygons]
+    if solids:
+        floor = floor.difference(shapely.union_all(solids))
+    if floor.geom_type != "Polygon":
+        floor = max(getattr(floor, "geoms", [floor]), key=lambda g: g.area)
+    return floor
+
+
+def _free_cells(scene: Scene) -> Any:
+    """A map's free cells as one geometry: each row's runs of free cells as rectangles,
+    united."""
+    import shapely
+    from shapely import affinity
+    from shapely.geometry import box
+
+    grid = scene.grid
+    assert grid is not None
+    free = grid.cells == 0
+    rects = []
+    for row in range(free.shape[0]):
+        line = np.concatenate([[False], free[row], [False]]).astype(np.int8)
+        edges = np.flatnonzero(np.diff(line))
+        for start, end in zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True):
+            rects.append(box(start, row, end, row + 1))
+    cells = shapely.union_all(rects)
+    x0, y0, yaw = grid.origin
+    cells = affinity.scale(cells, grid.resolution, grid.resolution, origin=(0, 0))
+    cells = affinity.rotate(cells, yaw, origin=(0, 0), use_radians=True)
+    return affinity.translate(cells, x0, y0)
+
+
+class People:
+    """The person and the crowd walking in one JuPedSim simulation.
+
+    Args:
+        scene: the static scene they walk in.
+        dt: the control period (s); :meth:`advance` moves everyone by one.
+        rng: the episode's generator: seeds JuPedSim, draws the gait, pauses, crowd starts and
+            goals.
+        person: the person's start (m), or None (no person walks here).
+        goals: (G, 2) the person's goals in order (m).
+        speed: the person's preferred walking speed (m/s).
+        gait_variation: standard deviation of the person's speed factor (relative).
+        goal_pause: mean time (s) the person stops at each goal but the last.
+        startup_time: the person stands still until then (s).
+        crowd: number of pedestrians.
+        crowd_speed: the pedestrians' preferred speed (m/s), each drawn within ±20 %.
+        radius: body radius (m) of the person and the pedestrians.
+        keep_clear: (M, 2) points pedestrians do not start near (the robots' start).
+    """
+
+    def __init__(self, scene: Scene, dt: float, rng: np.random.Generator, *,
+                 person: tuple[float, float] | None, goals: FloatArray, speed: float,
+                 gait_variation: float, goal_pause: float, startup_time: float, crowd: int,
+                 crowd_speed: float, radius: float, keep_clear: FloatArray) -> None:
+        self._args = dict(scene=scene, dt=dt, person=person, goals=np.asarray(goals, float),
+                          speed=speed, gait_variation=gait_variation, goal_pause=goal_pause,
+                          startup_time=startup_time, crowd=crowd, crowd_speed=crowd_speed,
+                          radius=radius, keep_clear=np.asarray(keep_clear, float))
+        self._rng_state = rng.bit_generator.state
+        self._build(rng)
+
+    def _build(self, rng: np.random.Generator) -> None:
+        jps = _require_jupedsim()
+        a = self._args
+        self.dt = float(a["dt"])
+        self.radius = float(a["radius"])
+        self.area = walkable_area(a["scene"])
+        self._rng = rng
+        self._iterations = max(1, round(self.dt / PEDESTRIAN_DT))
+        self._sim = jps.Simulation(
+            model=jps.AnticipationVelocityModel(rng_seed=int(rng.integers(2**63))),
+            geometry=self.area, dt=self.dt / self._iterations)
+        stage = self._sim.add_direct_steering_stage()
+        journey = self._sim.add_journey(jps.JourneyDescription([stage]))
+
+        def add(position: FloatArray, desired: float) -> int:
+            params = jps.AnticipationVelocityModelAgentParameters(
+                position=(float(position[0]), float(position[1])), journey_id=journey,
+                stage_id=stage, desired_speed=desired, radius=self.radius + ROBOT_ROOM,
+                wall_buffer_distance=WALL_BUFFER)
+            return int(self._sim.add_agent(params))
+
+        self.has_person = a["person"] is not None
+        self.goals = a["goals"].reshape(-1, 2)
+        self.goal_index = 0
+        self.finished = not self.has_person or not len(self.goals)
+        self._ids: list[int] = []
+        if self.has_person:
+            self._ids.append(add(np.asarray(a["person"], float), 0.0))
+            if not self.finished:
+                self._agent(0).target = tuple(self.goals[0].tolist())
+        self._gait = 1.0
+        self._pause_until = 0.0
+        self.speeds = np.zeros(0)
+        if a["crowd"]:
+            starts = self._crowd_starts(a["crowd"], a["keep_clear"])
+            self.speeds = a["crowd_speed"] * rng.uniform(*CROWD_SPEED_SPREAD, a["crowd"])
+            for p, v in zip(starts, self.speeds.tolist(), strict=True):
+                self._ids.append(add(p, v))
+                self._agent(len(self._ids) - 1).target = tuple(self._free_point().tolist())
+        self.steps = 0
+        self.positions = self._read()
+        self.start_pedestrians = self.pedestrians.copy()
+        self._stuck_steps = max(1, round(STUCK_TIME / self.dt))
+        self._past: list[FloatArray] = []
+
+    def _agent(self, k: int) -> Any:
+        return self._sim.agent(self._ids[k])
+
+    def _read(self) -> FloatArray:
+        return np.array([self._agent(k).position for k in range(len(self._ids))],
+                        dtype=float).reshape(-1, 2)
+
+    def _free_point(self, away: FloatArray | None = None, clear: float = 0.0) -> FloatArray:
+        """A random point of the walkable area at least radius + wall buffer from its walls
+        and ``clear`` from every point of ``away``."""
+        from shapely import contains_xy
+
+        inner = self._inner()
+        x0, y0, x1, y1 = inner.bounds
+        for _ in range(PLACEMENT_TRIES):
+            p = self._rng.uniform((x0, y0), (x1, y1))
+            if not contains_xy(inner, p[0], p[1]):
+                continue
+            if away is not None and len(away):
+                gap = np.hypot(away[:, 0] - p[0], away[:, 1] - p[1])
+                # clear > 0: at least that far from every point; < 0: within -clear of them
+                if (gap.min() < clear) if clear >= 0 else (gap.max() > -clear):
+                    continue
+            return p
+        raise ValueError(f"crowd: no free place for a pedestrian in scene "
+                         f"{self._args['scene'].name!r} in {PLACEMENT_TRIES} draws; use a "
+                         f"smaller crowd")
+
+    def _inner(self) -> Any:
+        if not hasattr(self, "_inner_area"):
+            self._inner_area = self.area.buffer(-(self.radius + ROBOT_ROOM + WALL_BUFFER + 0.05))
+        return self._inner_area
+
+    def _crowd_starts(self, count: int, keep_clear: FloatArray) -> list[FloatArray]:
+        taken = [keep_clear.reshape(-1, 2)]
+        if self.has_person:
+            taken.append(np.asarray(self._args["person"], float).reshape(1, 2))
+        starts = []
+        for _ in range(count):
+            p = self._free_point(np.concatenate(taken), CROWD_CLEARANCE)
+            starts.append(p)
+            taken.append(p.reshape(1, 2))
+        return starts
+
+    # ------------------------------------------------------------------------ stepping
+    def advance(self, t: float) -> FloatArray:
+        """Moves everyone by one control period starting at time ``t`` (s); returns the new
+        positions (K, 2), the person first when there is one."""
+        a = self._args
+        if self.has_person:
+            self._steer_person(t, a)
+        for _ in range(self._iterations):
+            self._sim.iterate()
+        self.steps += 1
+        self.positions = self._read()
+        self._retarget_crowd()
+        return self.positions
+
+    def _steer_person(self, t: float, a: dict[str, Any]) -> None:
+        """Sets the person's desired speed for this period (zero before start-up, while
+        pausing and once done) and moves its goal on when reached."""
+        person = self._agent(0)
+        if not self.finished:
+            here = self.positions[0]
+            goal = self.goals[self.goal_index]
+            if math.hypot(here[0] - goal[0], here[1] - goal[1]) < GOAL_REACHED:
+                self.goal_index += 1
+                if self.goal_index == len(self.goals):
+                    self.finished = True
+                else:
+                    person.target = tuple(self.goals[self.goal_index].tolist())
+                    self._pause_until = t + float(self._rng.uniform(0.0, 2 * a["goal_pause"]))
+        # the speed factor: an Ornstein-Uhlenbeck process, stationary std = gait_variation
+        theta = self.dt / GAIT_TIME
+        noise = float(self._rng.standard_normal())
+        self._gait += theta * (1.0 - self._gait) + a["gait_variation"] * math.sqrt(
+            2 * theta) * noise
+        self._gait = min(max(self._gait, GAIT_RANGE[0]), GAIT_RANGE[1])
+        walking = (t >= a["startup_time"] - 1e-9 and t >= self._pause_until - 1e-9
+                   and not self.finished)
+        person.model.desired_speed = a["speed"] * self._gait if walking else 0.0
+
+    def _retarget_crowd(self) -> None:
+        """Pedestrians that reached their goal get a new random one; those stuck for
+        :data:`STUCK_TIME` give way (a new goal near them)."""
+        first = 1 if self.has_person else 0
+        self._past.append(self.positions)
+        before = self._past.pop(0) if len(self._past) > self._stuck_steps else None
+        for k in range(first, len(self._ids)):
+            agent = self._agent(k)
+            tx, ty = agent.target
+            x, y = self.positions[k]
+            if math.hypot(x - tx, y - ty) < GOAL_REACHED:
+                agent.target = tuple(self._free_point().tolist())
+            elif before is not None and math.hypot(x - before[k][0],
+                                                   y - before[k][1]) < STUCK_DISTANCE:
+                here = self.positions[k:k + 1]
+                agent.target = tuple(self._free_point(here, -GIVE_WAY_RADIUS).tolist())
+                self._past[0] = self._past[0].copy()
+                self._past[0][k] = (tx, ty)  # judged again a full STUCK_TIME later
+
+    @property
+    def pedestrians(self) -> FloatArray:
+        """The crowd's positions (P, 2) (m)."""
+        return self.positions[1:] if self.has_person else self.positions
+
+    # --------------------------------------------------------------------------- pickle
+    def __getstate__(self) -> dict[str, Any]:
+        return {"args": self._args, "rng_state": self._rng_state, "steps": self.steps}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        # JuPedSim cannot be copied: rebuild from the same draws and replay every period
+        self._args = state["args"]
+        self._rng_state = state["rng_state"]
+        rng = np.random.default_rng()
+        rng.bit_generator.state = self._rng_state
+        self._build(rng)
+        for k in range(state["steps"]):
+            self.advance(k * self.dt)  # the env advances at world.time = steps · dt

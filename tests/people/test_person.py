@@ -1,0 +1,231 @@
+"""A person as the leader and crowds: the walk, the bodies, determinism, sensing, rewards."""
+
+import hashlib
+import pickle
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from boids_env import EnvConfig, parallel_env
+from boids_env.eval.episode import bind_policy, run_episode
+from boids_env.observations import Crowd, ObservationLayout, Sensors, build_observations
+from boids_env.policies import ReynoldsPolicy
+from boids_env.world.people import walkable_area
+from boids_env.world.scenes import load_scene
+
+
+def rollout(steps=60, **fields):
+    env = parallel_env(**fields)
+    obs, _ = env.reset(seed=3)
+    policy = ReynoldsPolicy()
+    bind_policy(policy, env)
+    policy.reset(3)
+    positions, crowd = [env.snapshot().positions], []
+    for _ in range(steps):
+        obs, *_ = env.step(policy.act(obs))
+        positions.append(env.snapshot().positions)
+        crowd.append(env._world.pedestrian_positions.copy())
+    return env, np.array(positions), np.array(crowd)
+
+
+def digest(*arrays):
+    return hashlib.sha256(b"".join(np.ascontiguousarray(a).tobytes() for a in arrays)
+                          ).hexdigest()
+
+
+def test_the_walkable_area_of_the_doorway_is_the_box_less_its_walls():
+    area = walkable_area(load_scene("doorway"))
+    # 12 m x 6 m less two 0.1 m walls from the door's jambs (0.5 m + a 0.05 m round end) to
+    # the box: 2 x (2.45 m x 0.1 m + a half disc of radius 0.05 m)
+    walls = 2 * (2.45 * 0.1 + np.pi * 0.05**2 / 2)
+    # (the buffered walls are polygons circumscribing them: 0.12 % wider, 6e-4 m² more)
+    assert area.area == pytest.approx(72.0 - walls, abs=1e-3)
+    assert area.contains(__import__("shapely").Point(0.0, 0.0)), "the door is walkable"
+    assert not area.contains(__import__("shapely").Point(0.0, 1.0)), "the wall is not"
+
+
+def test_same_seed_same_walk_bit_for_bit_and_the_gait_varies():
+    _, a, ca = rollout(crowd=3, scene="doorway", leader="person")
+    _, b, cb = rollout(crowd=3, scene="doorway", leader="person")
+    assert digest(a, ca) == digest(b, cb)
+    speed = np.hypot(*np.diff(a[:, 0], axis=0).T) / 0.1
+    walking = speed[21:]  # after the 2 s start-up
+    assert walking.std() > 0.02, f"a constant speed profile: {walking}"
+    assert speed[:19].max() < 1e-9, "the person stands still during the start-up"
+
+
+def test_a_walk_is_the_same_in_another_process():
+    code = ("import hashlib, numpy as np\n"
+            "from boids_env import parallel_env\n"
+            "env = parallel_env(scene='doorway', leader='person', crowd=3)\n"
+            "env.reset(seed=3)\n"
+            "for _ in range(40):\n"
+            "    env.step({a: np.zeros(2) for a in env.agents})\n"
+            "w = env._world\n"
+            "print(hashlib.sha256(w.positions.tobytes() + w.pedestrian_positions.tobytes())"
+            ".hexdigest())\n")
+    runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           check=True).stdout for _ in range(2)]
+    env = parallel_env(scene="doorway", leader="person", crowd=3)
+    env.reset(seed=3)
+    for _ in range(40):
+        env.step({a: np.zeros(2) for a in env.agents})
+    w = env._world
+    here = hashlib.sha256(w.positions.tobytes() + w.pedestrian_positions.tobytes()).hexdigest()
+    assert runs[0].strip() == runs[1].strip() == here
+
+
+def test_robots_cannot_push_the_person():
+    # a follower driving at full speed into a standing person (start-up: it stands)
+    env = parallel_env(robots=2, leader="person", startup_time=30.0, init_jitter=0.0)
+    env.reset(seed=0)
+    start = env.snapshot().positions[0].copy()
+    towards = start - env.snapshot().positions[1]
+    for _ in range(30):
+        env.step({"follower_1": 0.5 * towards / np.hypot(*towards)})
+    snap = env.snapshot()
+    gap = np.hypot(*(snap.positions[1] - snap.positions[0])) - 0.22 - 0.036
+    assert np.hypot(*(snap.positions[0] - start)) < 1e-4, snap.positions[0]
+    assert -0.005 < gap < 0.002, gap
+
+
+@pytest.mark.slow
+def test_no_robot_overlaps_a_person_by_more_than_5_mm_in_a_crowded_doorway():
+    _, pos, crowd = rollout(steps=400, scene="doorway", leader="person", crowd=12)
+    r = 0.22 + 0.036
+    person = np.hypot(*(pos[:, 1:] - pos[:, :1]).transpose(2, 0, 1)) - r
+    walkers = np.hypot(*(pos[1:, 1:, None] - crowd[:, None]).transpose(3, 0, 1, 2)) - r
+    assert person.min() > -0.005, person.min()
+    assert walkers.min() > -0.005, walkers.min()
+
+
+def test_a_pickled_episode_goes_on_bit_for_bit():
+    env = parallel_env(scene="doorway", leader="person", crowd=2, robots=4)
+    env.reset(seed=1)
+    for _ in range(25):
+        env.step({a: np.array([0.1, 0.0]) for a in env.agents})
+    copy = pickle.loads(pickle.dumps(env))
+    for e in (env, copy):
+        for _ in range(10):
+            e.step({a: np.array([0.0, 0.1]) for a in e.agents})
+    assert np.array_equal(env.snapshot().positions, copy.snapshot().positions)
+    assert np.array_equal(env._world.pedestrian_positions, copy._world.pedestrian_positions)
+
+
+def test_the_person_is_the_leader_everywhere():
+    env = parallel_env(leader="person", robots=4)
+    obs, _ = env.reset(seed=0)
+    snap = env.snapshot()
+    o = obs["follower_1"]
+    assert np.allclose(o[env.layout.leader_position], snap.positions[0] - snap.positions[1])
+    rec = run_episode(parallel_env(leader="person", robots=4, max_cycles=30), ReynoldsPolicy(),
+                      seed=0).recording
+    assert rec.metrics()["intimate_fraction"] >= 0.0  # the person's metrics are computed
+    assert "intimate_fraction" not in run_episode(parallel_env(robots=4, max_cycles=5),
+                                                  ReynoldsPolicy(), seed=0).metrics
+
+
+def test_the_pedestrian_slots_hold_the_nearest_pedestrians():
+    positions = np.array([(0.0, 0.0), (1.0, 1.0)])
+    velocities = np.zeros((2, 2))
+    crowd = Crowd(np.array([(4.0, 1.0), (1.5, 1.0), (9.0, 9.0)]),
+                  np.array([(0.0, 1.0), (-1.0, 0.0), (5.0, 5.0)]))
+    layout = ObservationLayout(0, pedestrians=3)
+    sensors = Sensors(pedestrian_range=3.0)
+    obs = build_observations(positions, velocities, layout, 1.0, 3.0, 10.0, None, sensors,
+                             crowd)
+    slots = obs[0, layout.block("pedestrians")].reshape(3, 5)
+    assert slots.tolist() == [[0.5, 0.0, -1.0, 0.0, 1.0], [3.0, 0.0, 0.0, 1.0, 1.0],
+                              [0.0, 0.0, 0.0, 0.0, 0.0]]
+
+
+def test_the_lidar_sees_pedestrians_and_the_person_as_wide_discs():
+    from boids_env.observations import _lidar_block
+
+    scene = load_scene("arena")
+    positions = np.array([(2.0, 0.0), (0.0, 0.0)])  # the person 2 m east of the follower
+    crowd = Crowd(np.array([(0.0, 1.0)]), np.zeros((1, 2)))  # a pedestrian 1 m north
+    sensors = Sensors(scene, lidar_range=3.0, leader_radius=0.22, pedestrian_radius=0.25)
+    ranges = _lidar_block(positions, 4, sensors, None, crowd)[0]
+    assert ranges[0] == pytest.approx(2.0 - 0.22) and ranges[1] == pytest.approx(1.0 - 0.25)
+    assert ranges[2] == ranges[3] == 3.0
+
+
+def test_the_intrusion_reward_counts_time_in_the_personal_space():
+    env = parallel_env(robots=3, leader="person", reward_intrusion=2.0, init_jitter=0.0)
+    env.reset(seed=0)
+    _, _, _, _, infos = env.step({a: np.zeros(2) for a in env.agents})
+    d = np.hypot(*(env.snapshot().positions[1:] - env.snapshot().positions[0]).T)
+    want = [-2.0 * 0.1 if x < 1.2 else 0.0 for x in d]
+    assert [infos[a]["reward_intrusion"] for a in env.agents] == pytest.approx(want)
+    assert any(want), d
+    off = parallel_env(robots=3, leader="person")
+    off.reset(seed=0)
+    _, _, _, _, infos = off.step({a: np.zeros(2) for a in off.agents})
+    assert all(i["reward_intrusion"] == 0.0 for i in infos.values())
+
+
+@pytest.mark.parametrize(("fields", "message"), [
+    ({"leader": "human"}, r"leader must be one of \('robot', 'person', 'trajectory'\)"),
+    ({"crowd": -1}, r"crowd must be in \[0, 500\]"),
+    ({"crowd_speed": 3.0}, r"crowd_speed must be in \(0.0, 2.0\] m/s"),
+    ({"person_radius": 0.9}, r"person_radius must be in \[0.05, 0.5\] m"),
+    ({"gait_variation": 1.0}, r"gait_variation must be in \[0.0, 0.5\]"),
+    ({"personal_space": 1.0}, r"unknown config field"),
+])
+def test_bad_people_fields_are_refused(fields, message):
+    with pytest.raises((ValueError, TypeError), match=message):
+        EnvConfig.from_kwargs(**fields)
+
+
+def test_crowd_is_not_a_reset_option():
+    env = parallel_env(robots=3)
+    with pytest.warns(UserWarning, match="ignores unknown option"):
+        env.reset(seed=0, options={"crowd": 3})
+    assert env._world.p == 0
+
+
+def test_a_person_walked_by_hand_moves_as_commanded():
+    # the live window's keyboard person: --leader person --path external
+    env = parallel_env(leader="person", path="external", robots=3, startup_time=0.0)
+    env.reset(seed=0)
+    env.set_leader_command([0.5, 0.0])
+    for _ in range(10):
+        env.step({a: np.zeros(2) for a in env.agents})
+    assert env.snapshot().positions[0] == pytest.approx([0.5, 0.0], abs=1e-9)
+    assert env._people is None  # no pedestrian model runs for a hand-walked person
+
+
+def test_ros_sim_refuses_a_walking_person():
+    from boids_env.eval.ros.sim import SimNode, SimOptions
+
+    with pytest.raises(ValueError, match=r"a walking person .* not supported"):
+        SimNode(SimOptions(env_fields={"leader": "person"}))
+
+
+def test_the_walkable_area_of_a_map_is_its_free_cells():
+    scene = load_scene("lab")
+    area = walkable_area(scene)
+    free = float((scene.grid.cells == 0).sum()) * scene.grid.resolution ** 2
+    # less the 5 mm contour capsules along the walls (and any free pocket cut off)
+    assert 0.99 * free < area.area <= free, (area.area, free)
+    occupied = np.argwhere(scene.grid.cells != 0)[0]
+    x0, y0, _ = scene.grid.origin
+    centre = (x0 + (occupied[1] + 0.5) * scene.grid.resolution,
+              y0 + (occupied[0] + 0.5) * scene.grid.resolution)
+    assert not area.contains(__import__("shapely").Point(*centre))
+
+
+def test_a_person_walks_the_lab_map():
+    _, pos, _ = rollout(steps=80, scene="lab", leader="person", robots=4)
+    assert np.hypot(*(pos[-1, 0] - pos[0, 0])) > 1.0, "the person walked off its start"
+
+
+def test_a_crowd_that_does_not_fit_is_refused_and_leaves_no_episode():
+    env = parallel_env(scene="small_room", path_size=1.0, crowd=60, robots=4)
+    with pytest.raises(ValueError, match=r"crowd: no free place for a pedestrian"):
+        env.reset(seed=0)
+    with pytest.raises(RuntimeError, match=r"call reset\(\) first"):
+        env.step({})

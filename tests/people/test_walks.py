@@ -1,0 +1,83 @@
+"""Recorded walks: leader="trajectory" replays a CSV of t, x, y on the episode's clock."""
+
+import numpy as np
+import pytest
+
+from boids_env import EnvConfig, parallel_env
+from boids_env.world.walks import WALKS, read_walk
+
+
+def write(tmp_path, text, name="walk.csv"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+WALK = "t,x,y\n0,-1,-1\n1.0,-1,-1\n2.5,0.5,-1\n4.0,0.5,0.5\n6.0,-1.0,1.0\n"
+
+
+def test_a_replayed_walk_is_where_the_file_says_at_every_sample(tmp_path):
+    path = write(tmp_path, WALK)
+    env = parallel_env(leader="trajectory", leader_trajectory=path, robots=5)
+    env.reset(seed=0)
+    times, points = read_walk(path)
+    seen = [(0.0, env.snapshot().positions[0])]
+    while env.agents:
+        env.step({a: np.zeros(2) for a in env.agents})
+        snap = env.snapshot()
+        seen.append((snap.time, snap.positions[0]))
+    assert seen[-1][0] >= times[-1] - 1e-9, "the episode ends after the walk"
+    for t, p in seen:
+        want = [np.interp(t, times, points[:, 0]), np.interp(t, times, points[:, 1])]
+        assert np.hypot(*(p - want)) < 1e-3, (t, p.tolist(), want)
+    # every row of the file, where the clock passes it (rows at whole tenths)
+    by_time = {round(t, 6): p for t, p in seen}
+    for t, want in zip(times, points, strict=True):
+        assert np.hypot(*(by_time[round(float(t), 6)] - want)) < 1e-3, (t, want.tolist())
+    # between rows: linear (t = 1.7 lies 0.7 / 1.5 of the way from row 2 to row 3)
+    assert np.allclose(by_time[1.7], [-1 + 1.5 * 0.7 / 1.5, -1.0], atol=1e-3)
+
+
+def test_the_walk_sets_the_start_and_heading(tmp_path):
+    cfg = EnvConfig.from_kwargs(leader="trajectory", leader_trajectory=write(tmp_path, WALK))
+    assert cfg.scenario.start == (-1.0, -1.0)
+    assert cfg.scenario.start_heading == 0.0  # its first move is along +x
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("t,x,y\n0,0,0\n", r"at least two rows"),
+    ("t,x,y\n0,0,0\n1,2\n", r"row 3: expected 3 values"),
+    ("t,x,y\n0,0,0\n1,a,2\n", r"row 3: t,x,y must be numbers"),
+    ("t,x,y\n0,0,0\n1,nan,2\n", r"row 3: values must be finite"),
+    ("t,x,y\n0,0,0\n1,0,1e9\n", r"row 3: values must be finite and within"),
+    ("t,x,y\n0,0,0\n2,0,0\n1,0,0\n", r"row 4: t must increase, got 1 after 2"),
+    ("t,x,y\n-1,0,0\n1,0,0\n", r"row 2: t must be >= 0"),
+    ("time,px,py\n0,0,0\n1,0,0\n", r"row 1: the header must be 't,x,y'"),
+])
+def test_bad_walk_files_are_refused_naming_the_row(tmp_path, text, message):
+    path = write(tmp_path, text)
+    with pytest.raises(ValueError, match=message):
+        EnvConfig.from_kwargs(leader="trajectory", leader_trajectory=path)
+
+
+def test_walk_files_are_bounded(tmp_path, monkeypatch):
+    from boids_env.world import walks
+
+    monkeypatch.setattr(walks, "WALK_MAX_BYTES", 50)
+    with pytest.raises(ValueError, match=r"more than the 50 allowed"):
+        read_walk(write(tmp_path, WALK * 3, "big.csv"))
+    with pytest.raises(ValueError, match=r"cannot be read"):
+        read_walk(str(tmp_path / "missing.csv"))
+
+
+def test_trajectory_fields_go_together(tmp_path):
+    with pytest.raises(ValueError, match=r"leader='trajectory' needs leader_trajectory"):
+        EnvConfig.from_kwargs(leader="trajectory")
+    with pytest.raises(ValueError, match=r"give leader='trajectory' too"):
+        EnvConfig.from_kwargs(leader_trajectory=write(tmp_path, WALK))
+
+
+def test_the_shipped_walk_is_what_its_generator_records():
+    from example_walk import example_walk
+
+    assert WALKS["doorway_walk"].read_text() == example_walk()
