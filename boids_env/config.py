@@ -204,6 +204,14 @@ class MetricsConfig:
     · dt per step). Not in the study: the cohesion flag alone tells a follower too far to get
     back soon nothing about getting closer, so it trades the flag for alignment; this dense
     term pays for closing in. 0 (off) under both rewards."""
+    reward_parked: float = 0.0
+    """Weight of the penalty on a follower's speed while the leader stands still (−w · speed
+    · dt per step, once the leader's command has been zero for more than ``parked_after``).
+    Not in the study (its leader never stops): followers should park around a leader who
+    stands, not mill. 0 (off) under both rewards."""
+    parked_after: float = 2.0
+    """Seconds the leader must have stood still before ``reward_parked`` applies (the
+    followers first settle around it)."""
     safety_distance: float = 0.3
     """Centre distance (m) under which ``reward_proximity`` applies. Not in the study."""
     wall_distance: float = 0.15
@@ -221,8 +229,11 @@ class MetricsConfig:
                      unit="degrees"))
         if not isinstance(self.wrap_alignment, bool):
             raise ValueError(f"wrap_alignment must be True or False, got {self.wrap_alignment!r}")
-        for name in ("reward_separation", "reward_cohesion", "reward_alignment", "reward_gap"):
+        for name in ("reward_separation", "reward_cohesion", "reward_alignment", "reward_gap",
+                     "reward_parked"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
+        _set(self, "parked_after", _number("parked_after", self.parked_after, 0.0, 3600,
+                                           unit="s"))
         if self.separation_threshold >= self.cohesion_threshold:
             raise ValueError(f"separation_threshold ({self.separation_threshold} m) must be "
                              f"below cohesion_threshold ({self.cohesion_threshold} m)")
