@@ -20,6 +20,7 @@ from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
 from boids_env.world.realism import RealismConfig
+from boids_env.world.safety import SafetyConfig
 
 # the scenario section and its path constants live with the world; re-exported here, where
 # the other sections are
@@ -257,7 +258,7 @@ class MetricsConfig:
 
 
 _SECTIONS = {"world": WorldConfig, "scenario": ScenarioConfig, "observation": ObservationConfig,
-             "metrics": MetricsConfig, "realism": RealismConfig}
+             "metrics": MetricsConfig, "realism": RealismConfig, "safety": SafetyConfig}
 FIELD_OWNER: dict[str, str] = {f.name: sec for sec, cls in _SECTIONS.items() for f in fields(cls)}
 """Which section owns each flat config name (``robots`` -> ``scenario``, ...)."""
 
@@ -276,6 +277,9 @@ class EnvConfig:
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     realism: RealismConfig = field(default_factory=RealismConfig)
     """Opt-in ROS/Stage realism (:mod:`boids_env.world.realism`); off by default."""
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
+    """The opt-in safety filter between the policy and the robots
+    (:mod:`boids_env.world.safety`); off by default."""
 
     def __post_init__(self) -> None:
         for name, cls in _SECTIONS.items():

@@ -22,6 +22,7 @@ from boids_env.vectors import as_velocities, clip_speed
 from boids_env.world import scenario
 from boids_env.world.leader import ExternalLeader, Leader, make_leader, preview_path, redraw_clear
 from boids_env.world.realism import Realism
+from boids_env.world.safety import filter_commands
 from boids_env.world.scenario import ScenarioConfig
 from boids_env.world.space import Snapshot, World
 
@@ -197,6 +198,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self._leader = redraw_clear(sc, scene, wc.robot_radius, self._leader, self._rng,
                                         wc.dt)
         self._world = World(wc, self._initial_positions, scene)
+        self._scene = scene
         self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
         self._tail_steps = round(sc.tail_time / wc.dt)
         self._finish_step: int | None = None
@@ -296,11 +298,16 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                               self.episode_config.world.max_speed)
         world, leader = self._world, self._leader
         assert world is not None and leader is not None
-        sc = self.episode_config.scenario
+        cfg = self.episode_config
+        sc = cfg.scenario
         if sc.startup_hold and world.time < sc.startup_time - 1e-9:
             commands = np.zeros_like(commands)
         full = np.empty((len(commands) + 1, 2))
         full[0] = leader.command(world.time, world.positions[0])
+        if cfg.safety.safety_filter:
+            commands = filter_commands(commands, world.positions, world.velocities, full[0],
+                                       cfg.world.robot_radius, cfg.world.max_speed,
+                                       self._scene, cfg.safety)
         full[1:] = commands
         self._still_steps = 0 if full[0].any() else self._still_steps + 1
         if self._realism is None:
@@ -310,7 +317,6 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             executed = self._realism.executed(full, world.positions, world.time)
             world.step(full, executed)
             self._history.append((world.commanded, executed))
-        cfg = self.episode_config
         flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded)
         stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])  # (3, F)
         self._counts += stacked

@@ -98,6 +98,9 @@ def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) ->
                    "staggered start, stale observations; see the README)")
     p.add_argument("--no-wrap", action="store_true",
                    help="the study's unwrapped alignment angle rule")
+    p.add_argument("--safety-filter", action="store_true",
+                   help="filter every follower's command so that it does not drive the robot "
+                   "into a wall, obstacle or robot (opt-in; see the README)")
 
 
 def _run_parser(sub: argparse._SubParsersAction) -> None:
@@ -227,6 +230,8 @@ def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
         fields["wrap_alignment"] = False
     if args.realism is not None:
         fields["realism"] = args.realism
+    if args.safety_filter:
+        fields["safety_filter"] = True
     return _with_settings(fields, args.set)
 
 
@@ -301,6 +306,9 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--realism", choices=REALISMS, default=None,
                    help="ROS/Stage realism in every case: none (the ideal world, default) or "
                    "ros (stall, staggered start, stale observations; see the README)")
+    p.add_argument("--safety-filter", action="store_true",
+                   help="the safety filter between the policies and the robots in every case "
+                   "(opt-in; see the README)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
     p.add_argument("--backend", choices=BACKENDS, default="process",
                    help="process (isolated worker processes, default), ray, or inline (in "
@@ -338,6 +346,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     suite = load_suite(args.suite).with_seeds(args.seeds).with_blocks(args.blocks)
     if args.realism is not None:
         suite = suite.with_env(realism=args.realism)
+    if args.safety_filter:
+        suite = suite.with_env(safety_filter=True)
     table = run_suite(policies, suite, args.out, workers=args.workers, backend=args.backend,
                       keep_trajectories=args.keep_trajectories, progress=not args.no_progress,
                       episode_timeout=args.episode_timeout or None, overwrite=args.overwrite)

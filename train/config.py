@@ -271,12 +271,6 @@ def _check_draws(config: TrainConfig) -> None:
     accepts; the error names the training field. (``boids_env.train.run.check_episodes``
     checks every combination before a run writes anything.)"""
     first = {env_name: getattr(config, name)[0] for name, env_name in DRAWN.items()}
-    for k, world in enumerate(config.worlds):
-        try:
-            EnvConfig.from_kwargs(**{**config.env_fields, **world})
-        except (ValueError, TypeError) as exc:
-            raise ValueError(f"worlds entry {k + 1} {world} (over env_fields) gives episodes "
-                             f"the env refuses: {exc}") from None
     try:
         base = EnvConfig.from_kwargs(**{**config.env_fields, **first})
     except (ValueError, TypeError) as exc:
@@ -294,6 +288,20 @@ def _check_draws(config: TrainConfig) -> None:
             except (ValueError, TypeError) as exc:
                 raise ValueError(f"{name} entry {value!r} gives episodes the env refuses "
                                  f"({env_name}={value!r}): {exc}") from None
+    shaped = ("path", "path_rotation", "path_mirror")
+    for i in range(config.copies):  # each world with the group size of its copies
+        k = i % len(config.worlds)
+        world = config.worlds[k]
+        fields_ = {**config.env_fields, **world, **first,
+                   "robots": config.group_sizes[i % len(config.group_sizes)]}
+        if world.get("scene", world.get("map", "arena")) != "arena":
+            fields_ = {n: v for n, v in fields_.items() if n not in shaped}
+        try:
+            EnvConfig.from_kwargs(**fields_)
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"worlds entry {k + 1} {world} (copy {i + 1}, robots="
+                             f"{fields_['robots']}, over env_fields) gives episodes the env "
+                             f"refuses: {exc}") from None
 
 
 def _set(obj: object, name: str, value: Any) -> None:

@@ -117,7 +117,11 @@ def run_sweep(config: TrainConfig, seeds: Sequence[int], out: str | Path, *,
     if resume is not None and not Path(resume).is_file():
         raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
     out = Path(out)
-    identity = {k: v for k, v in config.to_dict().items() if k != "seed"}
+    from boids_env.train.run import RESUME_FREE
+
+    # a sweep rerun with more (or fewer) timesteps, processes or threads is the same sweep:
+    # its seeds go on from their checkpoints
+    identity = {k: v for k, v in config.to_dict().items() if k != "seed" and k not in RESUME_FREE}
     folder.claim(out, {"sweep": identity}, overwrite=overwrite, owner=folder.SWEEP)
     write_json(out / "sweep.json", {"config": config.to_dict(), "seeds": list(seeds),
                                     "backend": backend})

@@ -103,3 +103,14 @@ def test_seeds_train_as_ray_tasks_on_a_two_node_cluster(tmp_path, monkeypatch):
     finally:
         ray.shutdown()
         cluster.shutdown()
+
+
+def test_every_seed_fine_tunes_the_given_model_unless_it_has_checkpoints(tmp_path):
+    config = TrainConfig(total_timesteps=1000, copies=1, group_sizes=(3,))
+    checkpoints = tmp_path / "seed_1" / "checkpoints"
+    checkpoints.mkdir(parents=True)
+    (checkpoints / "model_512_steps.zip").write_bytes(b"x")
+    jobs, done = plan(config, (0, 1), tmp_path, resume="/models/shipped.zip")
+    assert done == []
+    assert [(j.config["seed"], j.resume and os.path.basename(j.resume)) for j in jobs] == [
+        (0, "shipped.zip"), (1, "model_512_steps.zip")]
