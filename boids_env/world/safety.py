@@ -35,11 +35,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
+from scipy.spatial import cKDTree
 
 from boids_env.checks import flag as _flag
 from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
+from boids_env.vectors import clip_speed
 
 if TYPE_CHECKING:
     from boids_env.world.scene import Scene
@@ -106,8 +108,6 @@ def barrier_constraints(positions: FloatArray, velocities: FloatArray,
         the bounds (unused rows have a = 0 and b = a large number), and which rows are hard
         (static geometry and the leader; the other followers' rows are soft: they yield too).
     """
-    from boids_env.observations import nearest_neighbours
-
     alpha, margin = config.safety_gain, config.safety_margin
     dist_s = np.sqrt(surfaces[..., 0] ** 2 + surfaces[..., 1] ** 2)
     ok_s = np.asarray(surface_valid, dtype=bool) & (dist_s > 0.0)
@@ -115,8 +115,7 @@ def barrier_constraints(positions: FloatArray, velocities: FloatArray,
     a_s = np.where(ok_s[..., None], surfaces / safe_d[..., None], 0.0)
     b_s = np.where(ok_s, alpha * (dist_s - radius - margin), _FREE)
 
-    index, dist_r = nearest_neighbours(positions, config.safety_range,
-                                       config.safety_neighbours)
+    index, dist_r = _neighbours(positions, config.safety_range, config.safety_neighbours)
     ok_r = index >= 0
     other = positions[np.where(ok_r, index, 0)]
     offset = other - positions[1:, None, :]
@@ -132,6 +131,29 @@ def barrier_constraints(positions: FloatArray, velocities: FloatArray,
     b_r = np.where(ok_r, b_r, _FREE)
     hard = np.concatenate([np.ones(b_s.shape, dtype=bool), index == 0], axis=1)
     return (np.concatenate([a_s, a_r], axis=1), np.concatenate([b_s, b_r], axis=1), hard)
+
+
+def _neighbours(positions: FloatArray, reach: float, k: int
+                ) -> tuple[npt.NDArray[np.intp], FloatArray]:
+    """The ``k`` nearest other robots within ``reach`` of each follower: indices (F, k),
+    nearest first, -1 where none, and their distances (inf where none)."""
+    followers = len(positions) - 1
+    if k == 0 or followers == 0:
+        return np.full((followers, k), -1, dtype=np.intp), np.full((followers, k), np.inf)
+    width = min(k + 1, len(positions))
+    dist, index = cKDTree(positions).query(positions[1:], k=width, distance_upper_bound=reach)
+    dist = np.asarray(dist, dtype=float).reshape(followers, width)
+    index = np.asarray(index).reshape(followers, width)
+    # each row starts with the follower itself at distance 0 (or a robot exactly on it,
+    # which cannot be steered away from either): drop those
+    keep = (dist > 0.0) & np.isfinite(dist)
+    order = np.argsort(~keep, axis=1, kind="stable")[:, :k]
+    dist = np.take_along_axis(np.where(keep, dist, np.inf), order, axis=1)
+    index = np.take_along_axis(np.where(keep, index, -1), order, axis=1)
+    out_d = np.full((followers, k), np.inf)
+    out_i = np.full((followers, k), -1, dtype=np.intp)
+    out_d[:, :dist.shape[1]], out_i[:, :index.shape[1]] = dist, index
+    return out_i, out_d
 
 
 def nearest_allowed(commands: FloatArray, a: FloatArray, b: FloatArray,
@@ -205,8 +227,6 @@ def filter_commands(commands: FloatArray, positions: FloatArray, velocities: Flo
     ``positions`` moving at ``velocities`` (N, 2, the leader first) in ``scene``, with the
     leader commanding ``leader_velocity`` (2,) this step; speeds stay within
     ``max_speed``."""
-    from boids_env.vectors import clip_speed
-
     surfaces, valid = scene.nearest_points(positions[1:], STATIC_POINTS,
                                            config.safety_range)
     a, b, hard = barrier_constraints(positions, velocities,
