@@ -17,8 +17,10 @@ from boids_env.world.realism import REALISMS
 MAX_FAST = 1000.0
 """Largest ``--fast`` speed-up of the live window (times real time)."""
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros (a preset), random, learned (the "
-               "shipped PPO followers), learned-study (PPO on the study's reward alone), an "
-               "SB3 model .zip, or module:object (a Policy instance, class or factory)")
+               "shipped PPO followers), learned-study (PPO on the study's reward alone), "
+               "learned-scenes (the followers for a lab: walls, obstacles, standstills, the "
+               "safety filter), an SB3 model .zip, or module:object (a Policy instance, class "
+               "or factory)")
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:

@@ -37,8 +37,8 @@ def test_run_prints_no_preset_for_a_policy_without_one(tmp_path, capsys):
 def test_run_help_lists_every_builtin_policy():
     text = build_parser()._subparsers._group_actions[0].choices["run"].format_help()
     text = re.sub(r"-\s+", "-", text)  # argparse wraps lines after hyphens
-    for name in ("reynolds", "boids_ros", "random", "learned", "learned-study", ".zip",
-                 "module:object"):
+    for name in ("reynolds", "boids_ros", "random", "learned", "learned-study",
+                 "learned-scenes", ".zip", "module:object"):
         assert name in text, name
 
 
