@@ -175,7 +175,7 @@ def _recipes():
 
 def test_the_recipes_are_the_documented_ones():
     assert _recipes() == ["ppo_safe", "ppo_safe_stage2", "ppo_scenes", "ppo_scenes_stage2",
-                          "ppo_study"]
+                          "ppo_scenes_stage3", "ppo_study"]
 
 
 @pytest.mark.parametrize("name", _recipes())
@@ -222,6 +222,9 @@ def test_scenes_recipes_keep_the_shipped_observations_and_stage2_adds_the_filter
     assert second.env_fields["safety_filter"] is True
     assert dataclasses.replace(second, total_timesteps=first.total_timesteps,
                                env_fields=first.env_fields) == first
+    third = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage3"))
+    assert third.env_fields == {**second.env_fields, "reward_parked": 10.0}
+    assert third.total_timesteps > second.total_timesteps
 
 
 def test_safety_filter_flag_reaches_the_env(tmp_path):
