@@ -101,6 +101,15 @@ def run_job(job: SeedJob) -> str:
     return str(train(config, job.out, resume=job.resume, overwrite=job.overwrite))
 
 
+def sweep_identity(config: TrainConfig) -> dict[str, Any]:
+    """What makes two sweeps the same: the config without its seed and the fields a resume
+    may change (a sweep rerun with more timesteps, other processes or threads goes on)."""
+    from boids_env.train.run import RESUME_FREE
+
+    return {k: v for k, v in config.to_dict().items()
+            if k != "seed" and k not in RESUME_FREE}
+
+
 def run_sweep(config: TrainConfig, seeds: Sequence[int], out: str | Path, *,
               backend: str = "process", workers: int | None = None,
               overwrite: bool = False, resume: str | Path | None = None) -> Path:
@@ -117,12 +126,8 @@ def run_sweep(config: TrainConfig, seeds: Sequence[int], out: str | Path, *,
     if resume is not None and not Path(resume).is_file():
         raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
     out = Path(out)
-    from boids_env.train.run import RESUME_FREE
-
-    # a sweep rerun with more (or fewer) timesteps, processes or threads is the same sweep:
-    # its seeds go on from their checkpoints
-    identity = {k: v for k, v in config.to_dict().items() if k != "seed" and k not in RESUME_FREE}
-    folder.claim(out, {"sweep": identity}, overwrite=overwrite, owner=folder.SWEEP)
+    folder.claim(out, {"sweep": sweep_identity(config)}, overwrite=overwrite,
+                 owner=folder.SWEEP)
     write_json(out / "sweep.json", {"config": config.to_dict(), "seeds": list(seeds),
                                     "backend": backend})
     jobs, done = plan(config, seeds, out, overwrite,

@@ -114,3 +114,14 @@ def test_every_seed_fine_tunes_the_given_model_unless_it_has_checkpoints(tmp_pat
     assert done == []
     assert [(j.config["seed"], j.resume and os.path.basename(j.resume)) for j in jobs] == [
         (0, "shipped.zip"), (1, "model_512_steps.zip")]
+
+
+def test_a_sweep_with_more_timesteps_is_the_same_sweep():
+    """It was refused: the sweep's identity held total_timesteps, so a killed sweep could not
+    be rerun longer (or shorter)."""
+    from boids_env.train.sweep import sweep_identity
+
+    config = TrainConfig(total_timesteps=1000, copies=1, group_sizes=(3,))
+    assert sweep_identity(config) == sweep_identity(config.replace(
+        total_timesteps=5000, processes=1, torch_threads=1, seed=4))
+    assert sweep_identity(config) != sweep_identity(config.replace(learning_rate=1e-3))
