@@ -20,6 +20,7 @@ from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
 from boids_env.world.realism import RealismConfig
+from boids_env.world.safety import SafetyConfig
 
 # the scenario section and its path constants live with the world; re-exported here, where
 # the other sections are
@@ -221,6 +222,14 @@ class MetricsConfig:
     intrusion_distance: float = 1.2
     """Centre distance (m) under which ``reward_intrusion`` applies: the outer edge of Hall's
     personal zone (1.2 m)."""
+    reward_parked: float = 0.0
+    """Weight of the penalty on a follower's speed while the leader stands still (−w · speed
+    · dt per step, once the leader's command has been zero for more than ``parked_after``).
+    Not in the study (its leader never stops): followers should park around a leader who
+    stands, not mill. 0 (off) under both rewards."""
+    parked_after: float = 2.0
+    """Seconds the leader must have stood still before ``reward_parked`` applies (the
+    followers first settle around it)."""
     safety_distance: float = 0.3
     """Centre distance (m) under which ``reward_proximity`` applies. Not in the study."""
     wall_distance: float = 0.15
@@ -239,8 +248,10 @@ class MetricsConfig:
         if not isinstance(self.wrap_alignment, bool):
             raise ValueError(f"wrap_alignment must be True or False, got {self.wrap_alignment!r}")
         for name in ("reward_separation", "reward_cohesion", "reward_alignment", "reward_gap",
-                     "reward_intrusion"):
+                     "reward_intrusion", "reward_parked"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
+        _set(self, "parked_after", _number("parked_after", self.parked_after, 0.0, 3600,
+                                           unit="s"))
         if self.separation_threshold >= self.cohesion_threshold:
             raise ValueError(f"separation_threshold ({self.separation_threshold} m) must be "
                              f"below cohesion_threshold ({self.cohesion_threshold} m)")
@@ -266,7 +277,7 @@ class MetricsConfig:
 
 
 _SECTIONS = {"world": WorldConfig, "scenario": ScenarioConfig, "observation": ObservationConfig,
-             "metrics": MetricsConfig, "realism": RealismConfig}
+             "metrics": MetricsConfig, "realism": RealismConfig, "safety": SafetyConfig}
 FIELD_OWNER: dict[str, str] = {f.name: sec for sec, cls in _SECTIONS.items() for f in fields(cls)}
 """Which section owns each flat config name (``robots`` -> ``scenario``, ...)."""
 
@@ -285,6 +296,9 @@ class EnvConfig:
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     realism: RealismConfig = field(default_factory=RealismConfig)
     """Opt-in ROS/Stage realism (:mod:`boids_env.world.realism`); off by default."""
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
+    """The opt-in safety filter between the policy and the robots
+    (:mod:`boids_env.world.safety`); off by default."""
 
     def __post_init__(self) -> None:
         for name, cls in _SECTIONS.items():

@@ -23,6 +23,7 @@ from boids_env.world import scenario
 from boids_env.world.leader import ExternalLeader, Leader, make_leader, preview_path, redraw_clear
 from boids_env.world.person import make_person
 from boids_env.world.realism import Realism
+from boids_env.world.safety import filter_commands
 from boids_env.world.scenario import ScenarioConfig
 from boids_env.world.space import Snapshot, World
 
@@ -37,17 +38,18 @@ class ArrayStep(NamedTuple):
     rewards: npt.NDArray[np.float64]
     """(F,) the rewards (the sum of ``terms``)."""
     terms: npt.NDArray[np.float64]
-    """(8, F) the reward terms in ``REWARD_INFO_KEYS`` order."""
+    """(9, F) the reward terms in ``REWARD_INFO_KEYS`` order."""
     truncated: bool
     """The episode ended (all followers are truncated together; there is no termination)."""
 
 REWARD_INFO_KEYS = ("reward_separation", "reward_cohesion", "reward_alignment",
                     "reward_proximity", "reward_contact", "reward_wall", "reward_gap",
-                    "reward_intrusion")
+                    "reward_intrusion", "reward_parked")
 """The per-term rewards every follower's info holds, after reset and after every step: the
 study's three, then the safety terms (0 unless ``reward="safe"`` or their weights are set),
-then the cohesion gap (0 unless ``reward_gap`` is set), then the intrusion into the
-leader's or a pedestrian's personal space (0 unless ``reward_intrusion`` is set)."""
+then the cohesion gap (0 unless ``reward_gap`` is set), the intrusion into the leader's or a
+pedestrian's personal space (0 unless ``reward_intrusion`` is set) and the parked term (0
+unless ``reward_parked`` is set)."""
 RESET_OPTIONS = (*(f.name for f in fields(ScenarioConfig) if f.name not in ("robots", "crowd")),
                  "obs_noise")
 """Fields that ``reset(options=...)`` may change for one episode: the scenario's (not
@@ -105,6 +107,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     signal (info key ``reward_gap``). The opt-in ``reward_intrusion`` weight adds −w·dt while
     a follower is within ``intrusion_distance`` (1.2 m, Hall's personal zone) of the leader
     or a pedestrian (info key ``reward_intrusion``), for following a person.
+    signal (info key ``reward_gap``). The opt-in ``reward_parked`` weight adds −w·speed·dt
+    while the leader has stood still for more than ``parked_after`` (info key
+    ``reward_parked``): followers park around a leader who stops.
 
     ## Starting State
     Leader at (0, 0), followers on the study's 0.5 m grid behind it with a seeded jitter of
@@ -217,6 +222,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self._world, self.agents = None, []
             raise
         self._world = self._new_world()
+        self._scene = scene
         self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
         self._tail_steps = round(sc.tail_time / wc.dt)
         self._finish_step: int | None = None
@@ -239,6 +245,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._safety_scale = -np.array(episode.metrics.safety_weights)[:, None] * wc.dt
         self._gap_scale = -episode.metrics.reward_gap * wc.dt
         self._intrusion_scale = -episode.metrics.reward_intrusion * wc.dt
+        self._parked_scale = -episode.metrics.reward_parked * wc.dt
+        self._parked_steps = round(episode.metrics.parked_after / wc.dt)
+        self._still_steps = 0
         self.agents = list(self.possible_agents)
         self.overlays = {}
         obs = self._observe()
@@ -286,10 +295,10 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             return {}, {}, {}, {}, {}
         agents = self.agents
         result = self._advance(self._parse_actions(actions))
-        k0, k1, k2, k3, k4, k5, k6, k7 = REWARD_INFO_KEYS
+        k0, k1, k2, k3, k4, k5, k6, k7, k8 = REWARD_INFO_KEYS
         # a literal per agent: 4× faster than dict(zip(...)) (1 ms a step at 1000 robots)
-        infos = {a: {k0: c0, k1: c1, k2: c2, k3: c3, k4: c4, k5: c5, k6: c6, k7: c7}
-                 for a, (c0, c1, c2, c3, c4, c5, c6, c7) in zip(
+        infos = {a: {k0: c0, k1: c1, k2: c2, k3: c3, k4: c4, k5: c5, k6: c6, k7: c7, k8: c8}
+                 for a, (c0, c1, c2, c3, c4, c5, c6, c7, c8) in zip(
                      agents, result.terms.T.tolist(), strict=True)}
         return (dict(zip(agents, result.observations, strict=True)),
                 dict(zip(agents, result.rewards.tolist(), strict=True)),
@@ -326,7 +335,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                               self.episode_config.world.max_speed)
         world, leader = self._world, self._leader
         assert world is not None and leader is not None
-        sc = self.episode_config.scenario
+        cfg = self.episode_config
+        sc = cfg.scenario
         if sc.startup_hold and world.time < sc.startup_time - 1e-9:
             commands = np.zeros_like(commands)
         crowd = None
@@ -336,7 +346,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             crowd = (self._people.pedestrians - world.pedestrian_positions) / dt
         full = np.empty((len(commands) + 1, 2))
         full[0] = leader.command(world.time, world.positions[0])
+        if cfg.safety.safety_filter:
+            commands = filter_commands(commands, world.positions, world.velocities, full[0],
+                                       cfg.world.robot_radius, cfg.world.max_speed,
+                                       self._scene, cfg.safety)
         full[1:] = commands
+        self._still_steps = 0 if full[0].any() else self._still_steps + 1
         if self._realism is None:
             world.step(full, None, crowd)
             self._history.append((world.commanded, None, crowd))
@@ -351,7 +366,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         terms = np.vstack([self._reward_scale * stacked,  # metrics.reward_terms as one array
                            self._safety_terms(world.positions),
                            self._gap_term(world.positions),
-                           self._intrusion_term(world)])  # (8, F)
+                           self._intrusion_term(world),
+                           self._parked_term(world.velocities)])  # (9, F)
         if self._finish_step is None and leader.finished:
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
@@ -392,6 +408,14 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         flags = proxemics.intrusion_flags(world.positions, world.pedestrian_positions,
                                         self.episode_config.metrics.intrusion_distance)
         return self._intrusion_scale * flags[None]
+
+    def _parked_term(self, velocities: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """The parked reward term (1, F): −weight · follower speed · dt once the leader's
+        command has been zero for more than ``parked_after``; zeros otherwise."""
+        if not self._parked_scale or self._still_steps <= self._parked_steps:
+            return np.zeros((1, len(velocities) - 1))
+        speed = np.sqrt(np.einsum("fd,fd->f", velocities[1:], velocities[1:]))
+        return self._parked_scale * speed[None]
 
     def _parse_actions(self, actions: Mapping[AgentID, npt.ArrayLike]
                        ) -> npt.NDArray[np.float64]:

@@ -306,6 +306,49 @@ def cohesion_gap(positions: FloatArray, cohesion_threshold: float) -> FloatArray
     return np.maximum(leader_distance(positions) - cohesion_threshold, 0.0)
 
 
+PARKED_AFTER = 5.0
+"""Seconds the leader must have stood still before its followers count as parked (the
+parked-formation metrics; issue 26's measure)."""
+STILL_SPEED = 0.01
+"""A leader commanding less than this (m/s) stands still."""
+
+
+def still_time(commanded_leader: FloatArray, dt: float) -> FloatArray:
+    """How long (s) the leader has stood still at each sample: (T, 2) -> (T,). A sample whose
+    command is below :data:`STILL_SPEED` adds dt to the run of still samples before it; a
+    moving one resets it to 0."""
+    cmd = np.asarray(commanded_leader, dtype=float)
+    still = np.sqrt(np.einsum("td,td->t", cmd, cmd)) < STILL_SPEED
+    index = np.arange(len(still))
+    last_moving = np.maximum.accumulate(np.where(still, -1, index))  # -1: none yet
+    return np.where(still, (index - last_moving) * dt, 0.0)
+
+
+def parked_metrics(positions: FloatArray, velocities: FloatArray, commanded: FloatArray,
+                   dt: float, after: float = PARKED_AFTER) -> dict[str, float]:
+    """How the followers wait for a leader who stands still, over the samples where it has
+    stood for more than ``after`` seconds.
+
+    Args:
+        positions, velocities, commanded: (T, N, 2) samples, the leader first.
+        dt: sampling period (s).
+        after: seconds of standstill before a sample counts (default 5 s).
+
+    Returns:
+        ``parked_speed``: the followers' mean speed (m/s) over those samples;
+        ``parked_distance_max``: the farthest any follower was from the leader then (m);
+        ``parked_time``: how long (s) those samples last. Empty when there are none.
+    """
+    waited = still_time(np.asarray(commanded)[:, 0], dt) > after + 1e-9
+    if not waited.any() or np.asarray(positions).shape[1] < 2:
+        return {}
+    vel = np.asarray(velocities, dtype=float)[waited, 1:]
+    speed = np.sqrt(np.einsum("tfd,tfd->tf", vel, vel))
+    return {"parked_speed": float(speed.mean()),
+            "parked_distance_max": float(leader_distance(np.asarray(positions)[waited]).max()),
+            "parked_time": float(waited.sum() * dt)}
+
+
 def polarization(velocities: FloatArray) -> FloatArray:
     """|mean unit velocity| of the robots that move: (..., N, 2) -> (...); 0 when none move."""
     speed = np.linalg.norm(velocities, axis=-1, keepdims=True)
@@ -347,8 +390,9 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         ``V_align_unwrapped`` and ``count_align_unwrapped`` (the study's unwrapped rule),
         ``duration`` (T, s), ``steps``, ``min_distance`` (m), ``collisions``,
         ``polarization`` (episode mean), ``mean_leader_distance`` (m), the safety
-        metrics of :func:`safety_metrics` (``SAFETY_KEYS``) and ``no_sight`` (each
-        follower's fraction of time without line of sight to the leader).
+        metrics of :func:`safety_metrics` (``SAFETY_KEYS``), ``no_sight`` (each
+        follower's fraction of time without line of sight to the leader) and, when the
+        leader stood still for more than 5 s, :func:`parked_metrics`.
     """
     if scene is None:
         from boids_env.world.scenes import arena
@@ -387,6 +431,7 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         from boids_env.proxemics import crowd_metrics
 
         out.update(crowd_metrics(pos, pedestrians, robot_radius, pedestrian_radius))
+    out.update(parked_metrics(pos, velocities, commanded, dt))
     return out
 
 

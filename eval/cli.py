@@ -23,8 +23,9 @@ TRUST_HELP = ("load a model .zip through Stable-Baselines3's own load, which unp
               "README, 'Model files you did not make')")
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros or reynolds@proxemic (a preset), "
                "random, learned (the shipped PPO followers), learned-study (PPO on the study's "
-               "reward alone), learned-person (PPO following a person), an SB3 model .zip, "
-               "or module:object (a Policy instance, class or factory)")
+               "reward alone), learned-person (PPO following a person), learned-scenes (the "
+               "followers for a lab: walls, obstacles, standstills, the safety filter), an SB3 "
+               "model .zip, or module:object (a Policy instance, class or factory)")
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
@@ -114,6 +115,9 @@ def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) ->
                    "staggered start, stale observations; see the README)")
     p.add_argument("--no-wrap", action="store_true",
                    help="the study's unwrapped alignment angle rule")
+    p.add_argument("--safety-filter", action="store_true",
+                   help="filter every follower's command so that it does not drive the robot "
+                   "into a wall, obstacle or robot (opt-in; see the README)")
 
 
 def _run_parser(sub: argparse._SubParsersAction) -> None:
@@ -223,11 +227,10 @@ def _check_run_flags(args: argparse.Namespace) -> None:
 
 
 def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
-    fields: dict[str, Any] = {}
-    for name in ("robots", "leader_speed", "path", "scene", "start", "start_heading", "leader",
-                 "leader_trajectory", "crowd"):
-        if getattr(args, name) is not None:
-            fields[name] = getattr(args, name)
+    given = ("robots", "leader_speed", "path", "scene", "start", "start_heading", "leader",
+             "leader_trajectory", "crowd", "max_cycles", "arena_half_size", "realism")
+    fields: dict[str, Any] = {name: getattr(args, name) for name in given
+                              if getattr(args, name) is not None}
     if args.leader_trajectory is not None:
         fields.setdefault("leader", "trajectory")
     if args.map is not None:
@@ -239,14 +242,10 @@ def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
     if args.waypoints is not None:
         fields["waypoints"] = args.waypoints
         fields.setdefault("path", "waypoints")
-    if args.max_cycles is not None:
-        fields["max_cycles"] = args.max_cycles
-    if args.arena_half_size is not None:
-        fields["arena_half_size"] = args.arena_half_size
     if args.no_wrap:
         fields["wrap_alignment"] = False
-    if args.realism is not None:
-        fields["realism"] = args.realism
+    if args.safety_filter:
+        fields["safety_filter"] = True
     return _with_settings(fields, args.set)
 
 
@@ -331,6 +330,9 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--realism", choices=REALISMS, default=None,
                    help="ROS/Stage realism in every case: none (the ideal world, default) or "
                    "ros (stall, staggered start, stale observations; see the README)")
+    p.add_argument("--safety-filter", action="store_true",
+                   help="the safety filter between the policies and the robots in every case "
+                   "(opt-in; see the README)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
     p.add_argument("--backend", choices=BACKENDS, default="process",
                    help="process (isolated worker processes, default), ray, or inline (in "
@@ -368,6 +370,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     suite = load_suite(args.suite).with_seeds(args.seeds).with_blocks(args.blocks)
     if args.realism is not None:
         suite = suite.with_env(realism=args.realism)
+    if args.safety_filter:
+        suite = suite.with_env(safety_filter=True)
     table = run_suite(policies, suite, args.out, workers=args.workers, backend=args.backend,
                       keep_trajectories=args.keep_trajectories, progress=not args.no_progress,
                       episode_timeout=args.episode_timeout or None, overwrite=args.overwrite)

@@ -243,8 +243,27 @@ PERSON_LEARNED = Suite("person_learned", (
 trains on (``trained``) and two it never saw (``unseen``: the doorway scene, and the shipped
 walk replayed there), 13 robots."""
 
+UNSEEN_ROOM = Path(__file__).parent / "data" / "unseen_room.toml"
+"""A shapes-file room no recipe trains in: L-shaped, 7 m × 5 m, two pillars."""
+
+DEPLOYMENT = Suite("deployment", (
+    Case("lab", "unseen", "case", "lab", {"scene": "lab"}),
+    Case("unseen room", "unseen", "case", "unseen room", {"scene": str(UNSEEN_ROOM)}),
+    Case("square 45° near walls", "unseen", "case", "square 45° near walls",
+         {"path_rotation": 45.0, "path_size": 3.35}),
+    Case("leader 0.25", "unseen", "case", "leader 0.25", {"leader_speed": 0.25}),
+    Case("standing 30 s", "unseen", "case", "standing 30 s",
+         {"leader_pauses": ((20.0, 30.0),)}),
+    Case("61 robots", "trained", "case", "61 robots", {"robots": 61})))
+"""The lab-deployment bar of the scenes recipe (``ppo_scenes``, issue 26), beside the
+``scenes`` and ``generalisation`` suites: five cases picked before its training and never
+trained on (``unseen``: the lab's ROS map, a shapes-file room, the study's square turned 45°
+and passing 0.26 m from the walls, a 0.25 m/s leader, a leader standing 30 s 20 s into the
+square) and 61 robots, its largest trained group; 13 robots at 0.55 m/s otherwise."""
+
 SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION,
-          "scenes": SCENES, "person": PERSON, "person_learned": PERSON_LEARNED}
+          "scenes": SCENES, "deployment": DEPLOYMENT, "person": PERSON,
+          "person_learned": PERSON_LEARNED}
 
 
 def load_suite(spec: str | Path) -> Suite:

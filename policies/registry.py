@@ -1,5 +1,5 @@
 """Turns a policy spec (``reynolds``, ``reynolds@boids_ros``, ``random``, ``learned``,
-``learned-study``, ``model.zip``, ``module:object``) into a
+``learned-study``, ``learned-scenes``, ``model.zip``, ``module:object``) into a
 :class:`~boids_env.policies.base.Policy`."""
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from boids_env.policies.base import Policy
 from boids_env.policies.random_policy import RandomPolicy
 from boids_env.policies.reynolds import ReynoldsPolicy
 
-BUILTIN = ("reynolds", "random", "learned", "learned-study", "learned-person")
+BUILTIN = ("reynolds", "random", "learned", "learned-study", "learned-person",
+           "learned-scenes")
 LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_safe.zip"
 """The shipped PPO follower policy (recipes ``ppo_safe`` then ``ppo_safe_stage2``: leader frame,
 actions relative to the leader's velocity, safe reward with the cohesion gap, varied paths,
@@ -25,8 +26,12 @@ while its robots touch most of the time; kept to show what optimising those metr
 PERSON_MODEL = Path(__file__).parent / "models" / "ppo_person.zip"
 """The shipped follower policy for a person leading (recipe ``ppo_person``: ``learned``
 trained on for 3 M steps with a walking person and the intrusion reward); acts in numpy."""
+SCENES_MODEL = Path(__file__).parent / "models" / "ppo_scenes.zip"
+"""The shipped followers fine-tuned in scenes for a lab (recipes ``ppo_scenes`` then its stages
+2 and 3): walls near the path, doorways, corridors, pillars, up to 61 robots, leaders who
+stand still, with the safety filter in the loop; its env fields switch the filter on."""
 MODELS = {"learned": LEARNED_MODEL, "learned-study": STUDY_MODEL,
-          "learned-person": PERSON_MODEL}
+          "learned-person": PERSON_MODEL, "learned-scenes": SCENES_MODEL}
 
 
 def split_preset(spec: str, preset: str = "paper") -> tuple[str, str]:
@@ -52,7 +57,8 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
     Args:
         spec: ``reynolds`` (the study's controller; ``reynolds@boids_ros`` picks a preset),
             ``random``, ``learned`` (the shipped PPO followers), ``learned-study`` (PPO on the
-            study's reward alone), a path to a saved SB3 model
+            study's reward alone), ``learned-scenes`` (the followers for a lab: scenes,
+            standstills, the safety filter), a path to a saved SB3 model
             (``.zip``), or ``module:object`` naming a Policy instance, a Policy class (built
             with no arguments) or a factory returning a Policy.
         preset: Reynolds parameter preset (``paper`` or ``boids_ros``) unless ``spec`` names

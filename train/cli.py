@@ -107,9 +107,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace, config: Any) -> int:
     """``boids train --seeds ...``: every seed in a folder of its own, then the seeds table."""
-    if args.seed is not None or args.resume is not None:
-        raise ValueError("--seeds trains several seeds: give neither --seed nor --resume (a "
-                         "rerun goes on from each unfinished seed's last checkpoint)")
+    if args.seed is not None:
+        raise ValueError("--seeds trains several seeds: give no --seed (a rerun goes on from "
+                         "each unfinished seed's last checkpoint)")
     if args.backend == "ray":
         from boids_env.extras import require
 
@@ -117,7 +117,7 @@ def _sweep(args: argparse.Namespace, config: Any) -> int:
     from boids_env.train.sweep import run_sweep
 
     table = run_sweep(config, args.seeds, args.out, backend=args.backend, workers=args.workers,
-                      overwrite=args.overwrite)
+                      overwrite=args.overwrite, resume=args.resume)
     print(f"wrote {table} and {table.with_suffix('.md')}")
     return 0
 

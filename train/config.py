@@ -64,6 +64,16 @@ class TrainConfig:
     """Each episode draws whether its scene is mirrored from these."""
     obs_noises: tuple[float, ...] = (0.0,)
     """Each episode draws its sensing noise (std, m and m/s) from these."""
+    leader_pauses: tuple[tuple[tuple[float, float], ...], ...] = ((),)
+    """Each episode draws its leader's standstills (the env's ``leader_pauses``: (when, how
+    long) pairs in s of driving time) from these; ``[]`` is an episode without one."""
+    worlds: tuple[dict[str, Any], ...] = ({},)
+    """The worlds of the env copies, assigned round robin (as ``group_sizes``, so two lists of
+    the same length pair up copy by copy): tables of env fields over ``env_fields``, e.g.
+    ``{scene = "doorway"}`` or ``{arena_half_size = 2.5, path_size = 2.0}`` (walls near the
+    path). In a copy whose scene is not the study's arena the leader drives the scene's own
+    path: ``paths``, ``path_rotations`` and ``path_mirrors`` are drawn in arena copies only.
+    A world table must not set what an episode draws."""
     processes: int = 0
     """Worker processes the env copies are split over (1: stepped in the training process;
     0: one per core from 3 cores on, else 1; see ``vec_env.default_processes``)."""
@@ -123,6 +133,8 @@ class TrainConfig:
         _set(self, "path_mirrors", _tuple("path_mirrors", self.path_mirrors, _flag))
         _set(self, "obs_noises", _tuple("obs_noises", self.obs_noises,
                                         lambda n, v: check_number(n, v, 0.0, 10.0)))
+        _set(self, "leader_pauses", _tuple("leader_pauses", self.leader_pauses, _pause_list))
+        _set(self, "worlds", _tuple("worlds", self.worlds, _world))
         _set(self, "processes", check_integer("processes", self.processes, 0, self.copies))
         _set(self, "torch_threads", check_integer("torch_threads", self.torch_threads, 0, 256))
         if self.device not in DEVICES:
@@ -182,6 +194,8 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
+        out["leader_pauses"] = [[list(p) for p in entry] for entry in self.leader_pauses]
+        out["worlds"] = [dict(w) for w in self.worlds]
         return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
 
     # -------------------------------------------------------------------------- derived
@@ -216,7 +230,7 @@ class TrainConfig:
 
 DRAWN = {"group_sizes": "robots", "leader_speeds": "leader_speed", "paths": "path",
          "path_rotations": "path_rotation", "path_mirrors": "path_mirror",
-         "obs_noises": "obs_noise"}
+         "obs_noises": "obs_noise", "leader_pauses": "leader_pauses"}
 """Training fields whose entries each episode draws, and the env field each sets."""
 _ALWAYS_DRAWN = ("group_sizes", "leader_speeds", "paths")
 """Drawn fields that always override the env field (the others only when not the default)."""
@@ -239,6 +253,16 @@ def _check_env_fields(config: TrainConfig) -> None:
             raise ValueError(f"env_fields must not set {env_name!r} (reserved: each episode "
                              f"draws it from the training field {name}; put the value there, "
                              f"e.g. {name} = [{fields_[env_name]!r}])")
+    for k, world in enumerate(config.worlds):
+        unknown = sorted(set(world) - set(FIELD_OWNER) - {"map"})
+        if unknown:
+            raise ValueError(f"worlds entry {k + 1} has unknown key(s) {unknown}; allowed: "
+                             f"env config fields {sorted(FIELD_OWNER)}")
+        reserved = sorted(set(world) & set(DRAWN.values()))
+        if reserved:
+            raise ValueError(f"worlds entry {k + 1} must not set {reserved} (reserved: each "
+                             f"episode draws them from the training fields "
+                             f"{[n for n, e in DRAWN.items() if e in reserved]})")
 
 
 def _check_draws(config: TrainConfig) -> None:
@@ -264,6 +288,20 @@ def _check_draws(config: TrainConfig) -> None:
             except (ValueError, TypeError) as exc:
                 raise ValueError(f"{name} entry {value!r} gives episodes the env refuses "
                                  f"({env_name}={value!r}): {exc}") from None
+    shaped = ("path", "path_rotation", "path_mirror")
+    for i in range(config.copies):  # each world with the group size of its copies
+        k = i % len(config.worlds)
+        world = config.worlds[k]
+        fields_ = {**config.env_fields, **world, **first,
+                   "robots": config.group_sizes[i % len(config.group_sizes)]}
+        if world.get("scene", world.get("map", "arena")) != "arena":
+            fields_ = {n: v for n, v in fields_.items() if n not in shaped}
+        try:
+            EnvConfig.from_kwargs(**fields_)
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"worlds entry {k + 1} {world} (copy {i + 1}, robots="
+                             f"{fields_['robots']}, over env_fields) gives episodes the env "
+                             f"refuses: {exc}") from None
 
 
 def _set(obj: object, name: str, value: Any) -> None:
@@ -286,6 +324,22 @@ def _flag(name: str, value: Any) -> bool:
     if not isinstance(value, bool):
         raise ValueError(f"{name} entries must be true or false, got {value!r}")
     return value
+
+
+def _pause_list(name: str, value: Any) -> tuple[tuple[float, float], ...]:
+    from boids_env.world.scenario import ScenarioConfig
+
+    try:
+        return ScenarioConfig(leader_pauses=value).leader_pauses
+    except ValueError as exc:
+        raise ValueError(f"{name} entries: {exc}") from None
+
+
+def _world(name: str, value: Any) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ValueError(f"{name} entries must be tables of env fields (e.g. {{scene = "
+                         f"\"doorway\"}}), got {value!r}")
+    return dict(value)
 
 
 def _path(name: str, value: Any) -> str:

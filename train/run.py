@@ -35,36 +35,69 @@ from boids_env.train.vec_env import CopySpec, FlockVecEnv
 
 
 def copy_specs(config: TrainConfig) -> list[CopySpec]:
-    """The env copies of a run: ``copies`` of them, group sizes assigned round robin."""
-    sizes = config.group_sizes
-    choices = {name: values for name, values in (
-        ("path_rotation", config.path_rotations), ("path_mirror", config.path_mirrors),
-        ("obs_noise", config.obs_noises)) if values != (0.0,) and values != (False,)}
-    return [CopySpec(sizes[i % len(sizes)], config.leader_speeds, config.paths,
-                     dict(config.env_fields), choices) for i in range(config.copies)]
+    """The env copies of a run: ``copies`` of them, group sizes and worlds assigned round
+    robin; a copy in a scene other than the study's arena drives the scene's own path (no
+    path, rotation or mirror drawn)."""
+    sizes, worlds = config.group_sizes, config.worlds
+    shaped = {name: values for name, values in (
+        ("path_rotation", config.path_rotations), ("path_mirror", config.path_mirrors))
+        if values != (0.0,) and values != (False,)}
+    common = {name: values for name, values in (
+        ("obs_noise", config.obs_noises), ("leader_pauses", config.leader_pauses))
+        if values != (0.0,) and values != ((),)}
+    specs = []
+    for i in range(config.copies):
+        world = worlds[i % len(worlds)]
+        fields = {**config.env_fields, **world}
+        arena = _in_arena(fields)
+        specs.append(CopySpec(sizes[i % len(sizes)], config.leader_speeds,
+                              config.paths if arena else (), fields,
+                              {**shaped, **common} if arena else dict(common)))
+    return specs
+
+
+def _in_arena(fields: dict[str, Any]) -> bool:
+    """Whether env fields put the episode in the study's arena (of any size)."""
+    return fields.get("scene", fields.get("map", "arena")) == "arena"
 
 
 def check_episodes(config: TrainConfig) -> None:
-    """Builds the env config of every episode the run can draw (each group size, speed, path,
-    rotation, mirror and noise), so a combination the env refuses fails before anything is
-    written, naming the training field that holds it."""
+    """Builds the env config of every episode the run can draw (each copy's group size and
+    world with each speed, path, rotation and mirror; each noise and pause list), so a
+    combination the env refuses fails before anything is written, naming the training field
+    that holds it."""
     from itertools import product
 
     from boids_env.config import EnvConfig
 
-    base = EnvConfig.from_kwargs(**config.env_fields)
-    for combo in product(sorted(set(config.group_sizes)), config.leader_speeds, config.paths,
-                         config.path_rotations, config.path_mirrors, config.obs_noises):
-        robots, speed, path, turn, mirror, noise = combo
-        try:
-            base.replace(robots=robots, leader_speed=speed, path=path, path_rotation=turn,
-                         path_mirror=mirror, obs_noise=noise)
-        except (ValueError, TypeError) as exc:
-            raise ValueError(
-                f"the training config draws an episode the env refuses (group_sizes {robots}, "
-                f"leader_speeds {speed}, paths {path!r}, path_rotations {turn}, path_mirrors "
-                f"{mirror}, obs_noises {noise}, env_fields {config.env_fields}): {exc}"
-            ) from None
+    copies = {(s.robots, json.dumps(s.env_fields, sort_keys=True)): s
+              for s in copy_specs(config)}
+    for spec in copies.values():
+        base = EnvConfig.from_kwargs(**spec.env_fields)
+        arena = bool(spec.paths)
+        shapes = product(spec.paths, config.path_rotations, config.path_mirrors) if arena \
+            else [(None, None, None)]
+        for speed, (path, turn, mirror) in product(config.leader_speeds, list(shapes)):
+            drawn = {"robots": spec.robots, "leader_speed": speed}
+            if arena:
+                drawn.update(path=path, path_rotation=turn, path_mirror=mirror)
+            _check_episode(config, base, drawn)
+        for noise, pauses in product(config.obs_noises, config.leader_pauses):
+            _check_episode(config, base, {"robots": spec.robots, "obs_noise": noise,
+                                          "leader_pauses": pauses})
+
+
+def _check_episode(config: TrainConfig, base: Any, drawn: dict[str, Any]) -> None:
+    try:
+        base.replace(**drawn)
+    except (ValueError, TypeError) as exc:
+        where = {k: v for k, v in base.to_dict()["world"].items() if k in ("scene",
+                                                                        "arena_half_size")}
+        raise ValueError(
+            f"the training config draws an episode the env refuses ({drawn}, world {where}, "
+            f"env_fields {config.env_fields}; from group_sizes, leader_speeds, paths, "
+            f"path_rotations, path_mirrors, obs_noises, leader_pauses and worlds): {exc}"
+        ) from None
 
 
 def make_vec_env(config: TrainConfig) -> FlockVecEnv:

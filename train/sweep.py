@@ -75,9 +75,11 @@ def latest_checkpoint(seed_out: Path) -> Path | None:
     return max(found)[1] if found else None
 
 
-def plan(config: TrainConfig, seeds: Sequence[int], out: Path, overwrite: bool = False
-         ) -> tuple[list[SeedJob], list[int]]:
-    """The jobs still to run and the seeds already done (``model.zip`` present)."""
+def plan(config: TrainConfig, seeds: Sequence[int], out: Path, overwrite: bool = False,
+         resume: str | None = None) -> tuple[list[SeedJob], list[int]]:
+    """The jobs still to run and the seeds already done (``model.zip`` present). A seed goes
+    on from its own last checkpoint, else from ``resume`` (a model every seed fine-tunes,
+    e.g. the shipped one), else starts from scratch."""
     jobs, done = [], []
     for seed in seeds:
         seed_out = out / f"seed_{seed}"
@@ -85,9 +87,9 @@ def plan(config: TrainConfig, seeds: Sequence[int], out: Path, overwrite: bool =
         if not overwrite and (seed_out / "model.zip").is_file():
             done.append(seed)
             continue
-        resume = None if overwrite else latest_checkpoint(seed_out)
-        jobs.append(SeedJob(cfg.to_dict(), str(seed_out),
-                            None if resume is None else str(resume), overwrite))
+        last = None if overwrite else latest_checkpoint(seed_out)
+        start = str(last) if last is not None else resume
+        jobs.append(SeedJob(cfg.to_dict(), str(seed_out), start, overwrite))
     return jobs, done
 
 
@@ -99,23 +101,37 @@ def run_job(job: SeedJob) -> str:
     return str(train(config, job.out, resume=job.resume, overwrite=job.overwrite))
 
 
+def sweep_identity(config: TrainConfig) -> dict[str, Any]:
+    """What makes two sweeps the same: the config without its seed and the fields a resume
+    may change (a sweep rerun with more timesteps, other processes or threads goes on)."""
+    from boids_env.train.run import RESUME_FREE
+
+    return {k: v for k, v in config.to_dict().items()
+            if k != "seed" and k not in RESUME_FREE}
+
+
 def run_sweep(config: TrainConfig, seeds: Sequence[int], out: str | Path, *,
               backend: str = "process", workers: int | None = None,
-              overwrite: bool = False) -> Path:
+              overwrite: bool = False, resume: str | Path | None = None) -> Path:
     """Trains every seed of ``config`` not trained yet and writes the seeds table; returns
-    ``OUT/seeds.csv``. ``workers``: seeds trained at once (default: every seed)."""
+    ``OUT/seeds.csv``. ``workers``: seeds trained at once (default: every seed); ``resume``:
+    a model zip every seed fine-tunes (a seed with checkpoints of its own goes on from its
+    last one instead)."""
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     seeds = check_seeds(seeds)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or workers < 1):
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
+    if resume is not None and not Path(resume).is_file():
+        raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
     out = Path(out)
-    identity = {k: v for k, v in config.to_dict().items() if k != "seed"}
-    folder.claim(out, {"sweep": identity}, overwrite=overwrite, owner=folder.SWEEP)
+    folder.claim(out, {"sweep": sweep_identity(config)}, overwrite=overwrite,
+                 owner=folder.SWEEP)
     write_json(out / "sweep.json", {"config": config.to_dict(), "seeds": list(seeds),
                                     "backend": backend})
-    jobs, done = plan(config, seeds, out, overwrite)
+    jobs, done = plan(config, seeds, out, overwrite,
+                      None if resume is None else str(Path(resume).resolve()))
     if done:
         print(f"boids train: seeds {done} already trained in {out}; skipped")
     for job in jobs:

@@ -43,7 +43,8 @@ class CopySpec:
     leader_speeds: tuple[float, ...] = (0.55,)
     """Each episode's leader speed is drawn uniformly from these (m/s)."""
     paths: tuple[str, ...] = ("square",)
-    """Each episode's leader path is drawn uniformly from these."""
+    """Each episode's leader path is drawn uniformly from these; none (``()``): the path of
+    ``env_fields`` (a scene's own)."""
     env_fields: dict[str, Any] = field(default_factory=dict)
     """Other EnvConfig fields by flat name (e.g. ``max_cycles``)."""
     choices: dict[str, tuple[Any, ...]] = field(default_factory=dict)
@@ -52,8 +53,9 @@ class CopySpec:
 
     def draw(self, rng: np.random.Generator) -> dict[str, Any]:
         """One episode's reset options."""
-        options = {"leader_speed": float(self.leader_speeds[rng.integers(len(self.leader_speeds))]),
-                   "path": str(self.paths[rng.integers(len(self.paths))])}
+        options = {"leader_speed": float(self.leader_speeds[rng.integers(len(self.leader_speeds))])}
+        if self.paths:
+            options["path"] = str(self.paths[rng.integers(len(self.paths))])
         for name in sorted(self.choices):
             values = self.choices[name]
             value = values[rng.integers(len(values))]

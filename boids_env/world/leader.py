@@ -36,10 +36,13 @@ class Leader:
     """
 
     def __init__(self, speed: float, startup_time: float, transform: Vec | None = None,
-                 origin: npt.ArrayLike = (0.0, 0.0)) -> None:
+                 origin: npt.ArrayLike = (0.0, 0.0),
+                 pauses: tuple[tuple[float, float], ...] = ()) -> None:
         self.speed = speed
         self.startup_time = startup_time
         self.finished = False
+        self.pauses = tuple(pauses)
+        """Standstills ((when, how long), ...) in s of driving time (``leader_pauses``)."""
         turn = np.eye(2) if transform is None else np.asarray(transform, dtype=float)
         self.transform = turn
         # The identity is skipped, not multiplied: x·1 + y·0 turns −0.0 into 0.0, which flips
@@ -53,20 +56,42 @@ class Leader:
         """Velocity command (m/s) at time ``t`` (s since reset) for the measured ``position``."""
         if t < self.startup_time - 1e-9 or self.finished:
             return np.zeros(2)
+        driving = self.driving_time(t - self.startup_time)
+        if driving is None:
+            return np.zeros(2)
         local = np.asarray(position, dtype=float)
         if self._moved:
             local = local - self.origin
         if not self._turned:
-            return self._move(t - self.startup_time, local)
-        turned = self._move(t - self.startup_time, times_matrix(local, self.transform))  # T⁻¹ = Tᵀ
+            return self._move(driving, local)
+        turned = self._move(driving, times_matrix(local, self.transform))  # T⁻¹ = Tᵀ
         return times_matrix(turned, self.transform.T)
+
+    def driving_time(self, elapsed: float) -> float | None:
+        """The path's own clock ``elapsed`` s after the start-up: the time spent driving,
+        pauses left out; None while the leader stands in a pause."""
+        for when, length in self.pauses:
+            if elapsed < when:
+                break
+            if elapsed < when + length:
+                return None
+            elapsed -= length
+        return elapsed
 
     def _move(self, t: float, position: Vec) -> Vec:
         raise NotImplementedError
 
     @property
     def nominal_duration(self) -> float | None:
-        """Time (s) the path takes at ``speed`` from the end of start-up; None if unbounded."""
+        """Time (s) the path takes at ``speed`` from the end of start-up, pauses included;
+        None if unbounded."""
+        driving = self._driving_duration()
+        if driving is None:
+            return None
+        return driving + sum(length for _, length in self.pauses) if self.pauses else driving
+
+    def _driving_duration(self) -> float | None:
+        """Time (s) the path takes at ``speed`` without pauses; None if unbounded."""
         return None
 
     def reference_path(self) -> Vec | None:
@@ -107,8 +132,9 @@ class WaypointLeader(Leader):
     def __init__(self, targets: npt.ArrayLike, speed: float, startup_time: float, margin: float,
                  *, axis_aligned: bool, start: npt.ArrayLike = (0.0, 0.0),
                  transform: Vec | None = None, dt: float | None = None,
-                 origin: npt.ArrayLike = (0.0, 0.0)) -> None:
-        super().__init__(speed, startup_time, transform, origin)
+                 origin: npt.ArrayLike = (0.0, 0.0),
+                 pauses: tuple[tuple[float, float], ...] = ()) -> None:
+        super().__init__(speed, startup_time, transform, origin, pauses)
         self.dt = dt
         self.targets = np.asarray(targets, dtype=float).reshape(-1, 2)
         self.margin = margin
@@ -144,8 +170,7 @@ class WaypointLeader(Leader):
             return self.speed
         return min(self.speed, remaining / self.dt)
 
-    @property
-    def nominal_duration(self) -> float:
+    def _driving_duration(self) -> float:
         return (self._length - len(self.targets) * self.margin) / self.speed
 
     def _local_path(self) -> Vec:
@@ -161,8 +186,9 @@ class CurveLeader(Leader):
 
     def __init__(self, curve: Callable[[Vec], Vec], speed: float, startup_time: float,
                  laps: int, transform: Vec | None = None,
-                 origin: npt.ArrayLike = (0.0, 0.0)) -> None:
-        super().__init__(speed, startup_time, transform, origin)
+                 origin: npt.ArrayLike = (0.0, 0.0),
+                 pauses: tuple[tuple[float, float], ...] = ()) -> None:
+        super().__init__(speed, startup_time, transform, origin, pauses)
         phase = np.linspace(0.0, 2 * math.pi * laps, 4000 * laps + 1)
         self._points = curve(phase)
         seg = np.linalg.norm(np.diff(self._points, axis=0), axis=1)
@@ -184,8 +210,7 @@ class CurveLeader(Leader):
         out = self.speed * tangent + self.gain * (here - position)
         return clip_speed(out, CURVE_SPEED_FACTOR * self.speed)
 
-    @property
-    def nominal_duration(self) -> float:
+    def _driving_duration(self) -> float:
         return float(self._arc[-1]) / self.speed
 
     def _local_path(self) -> Vec:
@@ -226,33 +251,34 @@ def make_leader(scenario: ScenarioConfig, rng: np.random.Generator, dt: float | 
     margin = scenario.arrival_margin
     turn = scene_matrix(scenario)
     origin = np.asarray(scenario.start, dtype=float)
+    pauses = scenario.leader_pauses
     if scenario.path == "square":
         targets = np.array(PAPER_SQUARE) * (size / 4.0)
         return WaypointLeader(targets, speed, start, margin, axis_aligned=True, transform=turn,
-                              dt=dt, origin=origin)
+                              dt=dt, origin=origin, pauses=pauses)
     if scenario.path == "waypoints":
         local = np.array(scenario.waypoints, dtype=float)
         if np.any(origin != 0.0):
             local = local - origin  # the path's frame starts at the leader's start
         return WaypointLeader(local, speed, start, margin, axis_aligned=False,
-                              transform=turn, dt=dt, origin=origin)
+                              transform=turn, dt=dt, origin=origin, pauses=pauses)
     if scenario.path == "random_waypoints":
         targets = rng.uniform(-size, size, (scenario.random_waypoint_count, 2))
         return WaypointLeader(targets, speed, start, margin, axis_aligned=False, transform=turn,
-                              dt=dt, origin=origin)
+                              dt=dt, origin=origin, pauses=pauses)
     if scenario.path == "circle":
         radius = size / 2
 
         def circle(phi: Vec) -> Vec:  # through the origin, heading +y, centre (-r, 0)
             return np.stack([radius * (np.cos(phi) - 1), radius * np.sin(phi)], axis=1)
 
-        return CurveLeader(circle, speed, start, scenario.laps, turn, origin)
+        return CurveLeader(circle, speed, start, scenario.laps, turn, origin, pauses)
     if scenario.path == "figure_eight":
 
         def eight(phi: Vec) -> Vec:  # through the origin, lobes above and below it
             return np.stack([-size / 2 * np.sin(2 * phi), size * np.sin(phi)], axis=1)
 
-        return CurveLeader(eight, speed, start, scenario.laps, turn, origin)
+        return CurveLeader(eight, speed, start, scenario.laps, turn, origin, pauses)
     return ExternalLeader(speed, start)
 
 

@@ -7,6 +7,7 @@ turned and placed at the leader's start; the episode's length follows from the p
 
 from __future__ import annotations
 
+import itertools
 import math
 import numbers
 from dataclasses import dataclass
@@ -92,6 +93,12 @@ class ScenarioConfig:
     """Direction (degrees, counter-clockwise from +x) the leader faces at the start; the
     grid lies behind it. None: the study's (+y, turned with ``path_rotation``) in the arena,
     the direction of the path's first target in any other scene."""
+    leader_pauses: tuple[tuple[float, float], ...] = ()
+    """Standstills of the leader: ``(when, how long)`` pairs in seconds, ``when`` counted in
+    driving time since the start-up (earlier pauses not included), in increasing order. The
+    leader commands zero for ``how long`` and then drives on where it stopped. Not in the
+    study (its leader never stops): opt-in, for followers that must park around a leader who
+    stands still. Not for the ``external`` leader."""
 
     leader: str = "robot"
     """Who leads, one of LEADERS: ``robot`` (the study's), ``person`` (a pedestrian walked by
@@ -153,6 +160,7 @@ class ScenarioConfig:
         if self.start_heading is not None:
             _set(self, "start_heading", _number("start_heading", self.start_heading, -360, 360,
                                                 unit="degrees"))
+        _set(self, "leader_pauses", _pauses(self.leader_pauses, self.path))
 
 
     def _check_people(self) -> None:
@@ -188,6 +196,38 @@ class ScenarioConfig:
             if len(moving):
                 dx, dy = steps[moving[0]]
                 _set(self, "start_heading", math.degrees(math.atan2(dy, dx)))
+
+
+MAX_PAUSE = 3600.0
+"""Longest leader pause, and latest pause start (s of driving time)."""
+
+
+def _pauses(value: Any, path: str) -> tuple[tuple[float, float], ...]:
+    """``leader_pauses`` as ((when, how long), ...): finite, when in [0, MAX_PAUSE] and
+    increasing, how long in (0, MAX_PAUSE]; none for the external leader."""
+    if _pair_sequence(value) and len(value) == 0:
+        return ()
+    pairs = _pause_pairs(value)
+    for when, length in pairs:
+        if not 0.0 <= when <= MAX_PAUSE or not 0.0 < length <= MAX_PAUSE:
+            raise ValueError(f"leader_pauses must be (when, how long) pairs in seconds with "
+                             f"when in [0, {MAX_PAUSE:g}] and how long in (0, {MAX_PAUSE:g}], "
+                             f"got {value!r}")
+    whens = [when for when, _ in pairs]
+    if any(b <= a for a, b in itertools.pairwise(whens)):
+        raise ValueError(f"leader_pauses must be in increasing order of when, got {value!r}")
+    if path == "external":
+        raise ValueError("leader_pauses do not apply to path='external' (its commands come "
+                         "from outside); give () or another path")
+    return pairs
+
+
+def _pause_pairs(value: Any) -> tuple[tuple[float, float], ...]:
+    try:
+        return _waypoints(value, "leader_pauses")  # a sequence of finite number pairs
+    except ValueError:
+        raise ValueError(f"leader_pauses must be a sequence of (when, how long) pairs of "
+                         f"finite numbers in seconds, got {value!r}") from None
 
 
 def _waypoints(value: Any, name: str = "waypoints") -> tuple[tuple[float, float], ...]:

@@ -37,8 +37,8 @@ def test_run_prints_no_preset_for_a_policy_without_one(tmp_path, capsys):
 def test_run_help_lists_every_builtin_policy():
     text = build_parser()._subparsers._group_actions[0].choices["run"].format_help()
     text = re.sub(r"-\s+", "-", text)  # argparse wraps lines after hyphens
-    for name in ("reynolds", "boids_ros", "random", "learned", "learned-study", ".zip",
-                 "module:object"):
+    for name in ("reynolds", "boids_ros", "random", "learned", "learned-study",
+                 "learned-scenes", ".zip", "module:object"):
         assert name in text, name
 
 
@@ -174,7 +174,8 @@ def _recipes():
 
 
 def test_the_recipes_are_the_documented_ones():
-    assert _recipes() == ["ppo_person", "ppo_safe", "ppo_safe_stage2", "ppo_study"]
+    assert _recipes() == ["ppo_person", "ppo_safe", "ppo_safe_stage2", "ppo_scenes",
+                          "ppo_scenes_stage2", "ppo_scenes_stage3", "ppo_study"]
 
 
 @pytest.mark.parametrize("name", _recipes())
@@ -187,7 +188,7 @@ def test_every_shipped_recipe_builds_its_env(name):
     env.reset(seed=0)
     relative = config.env_fields.get("relative_actions", False)
     assert env.action_space("follower_1").high[0] == pytest.approx(1.0 if relative else 0.5)
-    assert relative == (name in ("ppo_person", "ppo_safe", "ppo_safe_stage2"))
+    assert relative == (name != "ppo_study")
 
 
 def test_stage2_continues_a_ppo_safe_run():
@@ -203,6 +204,41 @@ def test_stage2_continues_a_ppo_safe_run():
                                env_fields=first.env_fields, resume_log_std=None) == first
     assert second.total_timesteps > first.total_timesteps
     assert first.resume_log_std is None and second.resume_log_std is not None
+
+
+def test_scenes_recipes_keep_the_shipped_observations_and_stage2_adds_the_filter():
+    # ppo_scenes fine-tunes the shipped model: the same observation layout and actions;
+    # its stage 2 is the same run with the safety filter in the loop
+    from boids_env import BoidsEnv
+    from boids_env.train.config import TrainConfig, resolve_recipe
+
+    shipped, first, second = (TrainConfig.from_toml(resolve_recipe(n)) for n in (
+        "ppo_safe_stage2", "ppo_scenes", "ppo_scenes_stage2"))
+    for world in first.worlds:
+        env = BoidsEnv(robots=7, **{**first.env_fields, **world})
+        assert env.layout == BoidsEnv(**shipped.env_fields).layout, world
+    assert {k: v for k, v in second.env_fields.items() if k != "safety_filter"} == \
+        first.env_fields
+    assert second.env_fields["safety_filter"] is True
+    assert dataclasses.replace(second, total_timesteps=first.total_timesteps,
+                               env_fields=first.env_fields) == first
+    third = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage3"))
+    assert third.env_fields == {**second.env_fields, "reward_parked": 10.0}
+    assert third.total_timesteps > second.total_timesteps
+
+
+def test_safety_filter_flag_reaches_the_env(tmp_path):
+    out = tmp_path / "run"
+    assert main(["run", "--safety-filter", "--scene", "small_room", *SHORT, "--out",
+                 str(out)]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["env"]["safety"]["safety_filter"] is True
+    plain = tmp_path / "plain"
+    assert main(["run", *SHORT, "--out", str(plain)]) == 0
+    assert json.loads((plain / "config.json").read_text())["env"]["safety"][
+        "safety_filter"] is False
+    args = build_parser().parse_args(["eval", "--safety-filter", "--suite", "scenes"])
+    assert args.safety_filter is True
 
 
 def test_whole_rollouts_rounds_up_to_what_ppo_runs():

@@ -87,3 +87,52 @@ def test_external_leader_keeps_a_copy_of_the_callers_command():
     for agent, o in obs.items():
         assert np.isfinite(o).all(), f"{agent}: non-finite observation {o}"
     assert command.tolist()[1] == -1.0, "the caller's own array is left as the caller wrote it"
+
+
+def test_a_pause_stops_the_leader_for_its_length_then_it_drives_on():
+    """leader_pauses=((20, 30),): 20 s of driving after the 2 s start-up, the leader stands
+    still for exactly 30 s where it stopped, then finishes the square; the episode is 30 s
+    longer than the study's."""
+    e = parallel_env(robots=2, init_jitter=0.0, leader_pauses=((20.0, 30.0),))
+    path, times = drive(e)
+    plain, plain_times = drive(parallel_env(robots=2, init_jitter=0.0))
+    assert times[-1] == pytest.approx(plain_times[-1] + 30.0, abs=0.05)
+    still = (times > 22.2) & (times < 51.95)  # after its 0.1 s of braking
+    drift = np.linalg.norm(path[still] - path[still][0], axis=1).max()
+    assert drift < 1e-3, f"the leader stands during the pause (moved {drift} m)"
+    moving = np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-6
+    assert moving[(times[1:] > 20.0) & (times[1:] < 22.0)].all()
+    assert moving[(times[1:] > 52.2) & (times[1:] < 55.0)].all()
+    np.testing.assert_allclose(path[-1], plain[-1], atol=0.15)
+
+
+def test_a_curve_leader_goes_on_from_where_it_paused():
+    """The circle's reference point waits with the leader: after the pause the leader drives
+    on at its speed, it does not jump to where the reference point would have gone."""
+    e = parallel_env(robots=2, path="circle", path_size=3.0, init_jitter=0.0,
+                     leader_pauses=((5.0, 10.0),))
+    path, times = drive(e, exact_speed=False)
+    step = np.linalg.norm(np.diff(path, axis=0), axis=1) / 0.1
+    assert step.max() < 0.55 * 1.5 + 0.05, step.max()
+    assert np.all(step[(times[1:] > 7.2) & (times[1:] < 16.9)] < 0.01)
+
+
+def test_driving_time_leaves_the_pauses_out():
+    from boids_env.world.leader import Leader
+
+    leader = Leader(0.5, 2.0, pauses=((1.0, 2.0), (5.0, 1.0)))
+    assert [leader.driving_time(t) for t in (0.5, 1.5, 3.5, 7.5, 8.5)] == [0.5, None, 1.5,
+                                                                            None, 5.5]
+
+
+@pytest.mark.parametrize("bad, message", [
+    (((1.0, 2.0), (0.5, 1.0)), "increasing order"),
+    (((1.0, 0.0),), r"how long in \(0, 3600\]"),
+    (((-1.0, 2.0),), r"when in \[0, 3600\]"),
+    ("ab", "pairs of finite numbers in seconds"),
+])
+def test_bad_pauses_are_refused_by_name(bad, message):
+    with pytest.raises(ValueError, match=message):
+        parallel_env(leader_pauses=bad)
+    with pytest.raises(ValueError, match="do not apply to path='external'"):
+        parallel_env(path="external", leader_pauses=((1.0, 2.0),))

@@ -211,3 +211,50 @@ def test_gap_reward_pays_per_metre_beyond_the_cohesion_threshold():
                                      "follower_2": np.array([0.5, -0.5])})
     assert info["follower_2"]["reward_gap"] == 0.0
     assert info["follower_2"]["reward_cohesion"] == pytest.approx(-0.1)
+
+
+def test_parked_reward_pays_for_speed_once_the_leader_has_stood_still():
+    """reward_parked=3, parked_after=2 s: −3 · speed · dt per follower from the 21st step of a
+    leader standing still (here its 2 s start-up plus a 10 s pause at once), zero before, and
+    zero with the default weight."""
+    fields = dict(robots=3, init_jitter=0.0, leader_pauses=((0.0, 10.0),))
+    env = parallel_env(reward_parked=3.0, parked_after=2.0, **fields)
+    _, infos = env.reset(seed=0)
+    assert all(i["reward_parked"] == 0.0 for i in infos.values())
+    command = {"follower_1": np.array([0.2, 0.0]), "follower_2": np.zeros(2)}
+    for step in range(1, 26):
+        _, rew, _, _, info = env.step(command)
+        speed = np.linalg.norm(env.snapshot().velocities[1:], axis=1)
+        expected = -3.0 * speed * 0.1 if step > 20 else np.zeros(2)
+        got = [info["follower_1"]["reward_parked"], info["follower_2"]["reward_parked"]]
+        np.testing.assert_allclose(got, expected, rtol=1e-12, err_msg=f"step {step}")
+        assert rew["follower_1"] == pytest.approx(sum(info["follower_1"].values()))
+    assert speed[0] == pytest.approx(0.2, abs=1e-6) and got[0] < 0
+    off = parallel_env(**fields)
+    off.reset(seed=0)
+    for _ in range(25):
+        _, _, _, _, info = off.step(command)
+    assert info["follower_1"]["reward_parked"] == 0.0
+
+
+def test_still_time_and_parked_metrics_on_hand_computed_samples():
+    from boids_env.metrics import parked_metrics, still_time
+
+    cmd = np.array([[0, 0], [0, 0], [1, 0], [0, 0], [0, 0], [0.005, 0]], dtype=float)
+    np.testing.assert_allclose(still_time(cmd, 0.5), [0.5, 1.0, 0.0, 0.5, 1.0, 1.5])
+    # 8 samples, dt = 1 s, the leader still throughout: samples 6-8 (stood > 5 s) count
+    t = 8
+    commanded = np.zeros((t, 3, 2))
+    positions = np.zeros((t, 3, 2))
+    positions[:, 1] = [1.0, 0.0]
+    positions[:, 2] = [0.0, 2.0]
+    positions[6, 2] = [0.0, 2.5]
+    velocities = np.zeros((t, 3, 2))
+    velocities[5:, 1] = [[0.3, 0.4], [0.0, 0.0], [0.0, 0.0]]  # speeds 0.5, 0, 0
+    velocities[5:, 2] = [[0.0, 0.1], [0.1, 0.0], [0.0, 0.0]]  # speeds 0.1, 0.1, 0
+    velocities[0, 1] = [9.0, 9.0]  # before 5 s of standstill: not counted
+    out = parked_metrics(positions, velocities, commanded, 1.0)
+    assert out == pytest.approx({"parked_speed": 0.7 / 6, "parked_distance_max": 2.5,
+                                 "parked_time": 3.0})
+    commanded[4, 0] = [0.2, 0.0]  # the leader moved at sample 5: 3 still samples after it
+    assert parked_metrics(positions, velocities, commanded, 1.0) == {}

@@ -43,7 +43,7 @@ def test_module_class_specs_are_instantiated(here):
 
 
 @pytest.mark.parametrize("spec", ["reynolds", "reynolds@boids_ros", "random", "learned",
-                                  "learned-study", str(LEARNED_MODEL),
+                                  "learned-study", "learned-scenes", str(LEARNED_MODEL),
                                   "boids_env.policies.reynolds:ReynoldsPolicy"])
 def test_good_specs_pass_the_check(spec):
     check_policy_spec(spec)

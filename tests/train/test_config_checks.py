@@ -4,6 +4,7 @@ clear line and exit status 2."""
 
 import errno
 
+import numpy as np
 import pytest
 
 from boids_env.train.cli import main
@@ -165,3 +166,39 @@ def test_boids_train_shows_its_bar_on_a_terminal_only(tmp_path, monkeypatch):
     monkeypatch.setattr(sys, "stderr", Terminal())
     assert main([*argv, "--no-progress"]) == 2
     assert asked[-1] is False
+
+
+def test_worlds_pair_with_group_sizes_and_scenes_drive_their_own_paths():
+    from boids_env.train.run import check_episodes, copy_specs
+
+    config = TrainConfig(group_sizes=(13, 7), copies=4, paths=("square", "circle"),
+                         path_rotations=(0.0, 90.0), leader_pauses=((), ((5.0, 10.0),)),
+                         worlds=({}, {"scene": "corridor"}))
+    specs = copy_specs(config)
+    assert [(s.robots, s.env_fields.get("scene")) for s in specs] == [
+        (13, None), (7, "corridor"), (13, None), (7, "corridor")]
+    assert specs[0].paths == ("square", "circle") and "path_rotation" in specs[0].choices
+    assert specs[1].paths == () and set(specs[1].choices) == {"leader_pauses"}
+    options = specs[1].draw(np.random.default_rng(0))
+    assert "path" not in options and options["leader_pauses"] in ((), ((5.0, 10.0),))
+    check_episodes(config)
+    with pytest.raises(ValueError, match=r"worlds entry 2 \{'scene': 'corridor'\} \(copy 2, "
+                                         r"robots=37.*does not fit scene 'corridor'"):
+        TrainConfig(group_sizes=(13, 37), copies=2, worlds=({}, {"scene": "corridor"}))
+
+
+def test_bad_worlds_and_pauses_are_refused_by_name():
+    with pytest.raises(ValueError, match=r"worlds entry 2 must not set \['robots'\]"):
+        TrainConfig(worlds=({}, {"robots": 7}))
+    with pytest.raises(ValueError, match=r"worlds entry 1 has unknown key\(s\) \['sceen'\]"):
+        TrainConfig(worlds=({"sceen": "doorway"},))
+    with pytest.raises(ValueError, match="worlds entries must be tables"):
+        TrainConfig(worlds=("doorway",))
+    with pytest.raises(ValueError, match=r"worlds entry 1 .* gives episodes the env refuses"):
+        TrainConfig(worlds=({"arena_half_size": 1.0},))
+    with pytest.raises(ValueError, match="leader_pauses entries: leader_pauses must be in "
+                                         "increasing order"):
+        TrainConfig(leader_pauses=(((5.0, 1.0), (2.0, 1.0)),))
+    assert TrainConfig.from_dict(TrainConfig(
+        leader_pauses=((), ((5.0, 1.0),)), worlds=({"scene": "doorway"},)).to_dict()
+    ).leader_pauses == ((), ((5.0, 1.0),))

@@ -103,3 +103,25 @@ def test_seeds_train_as_ray_tasks_on_a_two_node_cluster(tmp_path, monkeypatch):
     finally:
         ray.shutdown()
         cluster.shutdown()
+
+
+def test_every_seed_fine_tunes_the_given_model_unless_it_has_checkpoints(tmp_path):
+    config = TrainConfig(total_timesteps=1000, copies=1, group_sizes=(3,))
+    checkpoints = tmp_path / "seed_1" / "checkpoints"
+    checkpoints.mkdir(parents=True)
+    (checkpoints / "model_512_steps.zip").write_bytes(b"x")
+    jobs, done = plan(config, (0, 1), tmp_path, resume="/models/shipped.zip")
+    assert done == []
+    assert [(j.config["seed"], j.resume and os.path.basename(j.resume)) for j in jobs] == [
+        (0, "shipped.zip"), (1, "model_512_steps.zip")]
+
+
+def test_a_sweep_with_more_timesteps_is_the_same_sweep():
+    """It was refused: the sweep's identity held total_timesteps, so a killed sweep could not
+    be rerun longer (or shorter)."""
+    from boids_env.train.sweep import sweep_identity
+
+    config = TrainConfig(total_timesteps=1000, copies=1, group_sizes=(3,))
+    assert sweep_identity(config) == sweep_identity(config.replace(
+        total_timesteps=5000, processes=1, torch_threads=1, seed=4))
+    assert sweep_identity(config) != sweep_identity(config.replace(learning_rate=1e-3))

@@ -1,0 +1,125 @@
+"""The opt-in safety filter (boids_env.world.safety): the exact 2-D projection on
+hand-computed half-planes, the barrier constraints on hand-computed geometry, and in the env:
+commands driving robots at full speed into a wall or into each other are stopped short of
+contact (the same commands without the filter touch), deterministically."""
+
+import numpy as np
+import pytest
+
+from boids_env import parallel_env
+from boids_env.config import EnvConfig
+from boids_env.world.safety import SafetyConfig, barrier_constraints, nearest_allowed
+
+FREE = 1e9
+
+
+def test_one_half_plane_projects_only_a_command_it_forbids():
+    a = np.array([[[1.0, 0.0]], [[1.0, 0.0]]])
+    b = np.array([[0.2], [0.2]])
+    out = nearest_allowed(np.array([[0.5, 0.1], [0.1, 0.3]]), a, b)
+    np.testing.assert_allclose(out, [[0.2, 0.1], [0.1, 0.3]], atol=1e-15)
+
+
+def test_two_half_planes_meet_at_their_corner():
+    a = np.array([[[1.0, 0.0], [0.0, 1.0]]] * 3)
+    b = np.array([[0.1, 0.2]] * 3)
+    out = nearest_allowed(np.array([[0.5, 0.5], [0.5, 0.0], [-0.3, 0.1]]), a, b)
+    np.testing.assert_allclose(out, [[0.1, 0.2], [0.1, 0.0], [-0.3, 0.1]], atol=1e-15)
+    # a diagonal wall: the nearest point of x + y <= 0 to (0.4, 0.2) is (0.1, -0.1)
+    n = np.array([[[1.0, 1.0]]]) / np.sqrt(2.0)
+    out = nearest_allowed(np.array([[0.4, 0.2]]), n, np.array([[0.0]]))
+    np.testing.assert_allclose(out, [[0.1, -0.1]], atol=1e-12)
+
+
+def test_unused_rows_change_nothing_and_a_squeeze_violates_least():
+    a = np.zeros((1, 3, 2))
+    b = np.full((1, 3), FREE)
+    command = np.array([[0.3, -0.4]])
+    np.testing.assert_array_equal(nearest_allowed(command, a, b), command)
+    # must move left by 0.2 and right by 0.1 at once: impossible; the command (0, 0) violates
+    # the worst by 0.2, each projection by 0.3, so the command stays
+    a = np.array([[[1.0, 0.0], [-1.0, 0.0]]])
+    b = np.array([[-0.2, -0.1]])
+    np.testing.assert_allclose(nearest_allowed(np.zeros((1, 2)), a, b), [[0.0, 0.0]])
+    # the first row hard (a wall or the leader), the second soft (a follower, who yields
+    # too): the hard row holds, (−0.2, 0)
+    hard = np.array([[True, False]])
+    np.testing.assert_allclose(nearest_allowed(np.zeros((1, 2)), a, b, hard), [[-0.2, 0.0]])
+
+
+def test_barrier_constraints_of_a_wall_a_follower_and_the_leader():
+    """Follower 1 at (0.2, 0) moving east at 0.2 m/s, 0.3 m west of a wall point; the leader
+    at the origin commanding 0.5 m/s east; follower 2 at (0.6, 0) moving east at 0.1 m/s
+    (the slower of them: 0.1 m/s east). α = 2 /s, margin 0.03 m, radius 0.036 m."""
+    cfg = SafetyConfig(safety_filter=True, safety_margin=0.03, safety_gain=2.0,
+                       safety_range=0.5, safety_neighbours=2)
+    positions = np.array([[0.0, 0.0], [0.2, 0.0], [0.6, 0.0]])
+    surfaces = np.array([[[0.3, 0.0]], [[0.0, 0.0]]])
+    valid = np.array([[True], [False]])
+    velocities = np.array([[0.4, 0.0], [0.2, 0.0], [0.1, 0.0]])
+    a, b, hard = barrier_constraints(positions, velocities, np.array([0.5, 0.0]), 0.036, cfg,
+                                     surfaces, valid)
+    # follower 1: the wall 0.3 m east (n = +x), the leader 0.2 m west (n = −x), follower 2
+    # 0.4 m east (n = +x, half the barrier plus the slower of their speeds along n)
+    np.testing.assert_allclose(a[0], [[1.0, 0.0], [-1.0, 0.0], [1.0, 0.0]], atol=1e-15)
+    np.testing.assert_allclose(b[0], [2 * (0.3 - 0.036 - 0.03),
+                                      2 * (0.2 - 0.072 - 0.03) - 0.5,
+                                      0.5 * 2 * (0.4 - 0.072 - 0.03) + 0.1], atol=1e-12)
+    # follower 2: no wall; follower 1 0.4 m west; the leader 0.6 m away, beyond the range
+    np.testing.assert_allclose(a[1], [[0.0, 0.0], [-1.0, 0.0], [0.0, 0.0]], atol=1e-15)
+    # along n = −x their speeds are −0.2 and −0.1: the smaller is −0.2
+    np.testing.assert_allclose(b[1], [FREE, 0.5 * 2 * (0.4 - 0.072 - 0.03) - 0.2, FREE],
+                               atol=1e-12)
+    np.testing.assert_array_equal(hard, [[True, True, False], [True, False, False]])
+
+
+def _drive(filtered, command_of, steps=80, **fields):
+    env = parallel_env(safety_filter=filtered, startup_time=100.0, **fields)
+    env.reset(seed=3)
+    walls = contacts = 0
+    for _ in range(steps):
+        snap = env.snapshot()
+        env.step({a: command_of(snap.positions, k + 1) for k, a in enumerate(env.agents)})
+        after = env.snapshot()
+        walls += len(after.wall_contacts)
+        contacts += len(after.contacts)
+    return walls, contacts, env.snapshot().positions
+
+
+def test_full_speed_into_the_walls_stops_short_with_the_filter_only():
+    east = lambda positions, k: np.array([0.5, 0.1])  # noqa: E731
+    walls, _, _ = _drive(False, east, robots=7, scene="small_room")
+    assert walls > 0, "without the filter the robots reach the east wall"
+    walls, contacts, positions = _drive(True, east, robots=7, scene="small_room")
+    assert walls == 0 and contacts == 0, (walls, contacts)
+    assert positions[1:, 0].max() > 2.2, "the followers still went east, to the wall's margin"
+
+
+def test_full_speed_into_each_other_stops_short_with_the_filter_only():
+    def to_leader(positions, k):
+        offset = positions[0] - positions[k]
+        return 0.5 * offset / np.linalg.norm(offset)
+
+    _, contacts, _ = _drive(False, to_leader, robots=13)
+    assert contacts > 0, "without the filter the followers pile up on the leader"
+    _, contacts, positions = _drive(True, to_leader, robots=13)
+    assert contacts == 0, contacts
+    d = np.linalg.norm(positions[1:] - positions[0], axis=1)
+    assert d.min() < 0.3, "they still closed in on the leader"
+
+
+def test_the_filter_is_off_by_default_deterministic_and_checked():
+    assert EnvConfig().safety.safety_filter is False
+    runs = []
+    for _ in range(2):
+        env = parallel_env(scene="pillars", safety_filter=True, max_cycles=60)
+        env.reset(seed=5)
+        rng = np.random.default_rng(0)
+        while env.agents:
+            env.step({a: rng.uniform(-0.5, 0.5, 2) for a in env.agents})
+        runs.append(env.snapshot().positions)
+    np.testing.assert_array_equal(runs[0], runs[1])
+    with pytest.raises(ValueError, match=r"safety_gain must be in \(0.0, 100"):
+        parallel_env(safety_gain=0.0)
+    with pytest.raises(ValueError, match="safety_filter must be"):
+        parallel_env(safety_filter="yes")
