@@ -406,6 +406,11 @@ def _block_section(table: pd.DataFrame, policies: list[str], per_follower: tuple
 def _comparison_section(table: pd.DataFrame, policies: list[str],
                         csvs: dict[str, pd.DataFrame], summary: list[str]) -> list[str]:
     comp = policy_comparison(table)
+    if comp.empty:  # one seed per case: nothing to compare with statistics
+        summary.append("- Policies not compared: a comparison needs at least 2 seeds per case.")
+        return ["## Policies compared per case", "",
+                "Not computed: comparing two policies on a case needs at least 2 seeds of "
+                "each (rerun with `--seeds 2` or more).", ""]
     verdict = policy_verdicts(comp)
     csvs["policy_comparison.csv"], csvs["policy_verdicts.csv"] = comp, verdict
     for policy, g in verdict.groupby("policy", sort=False):

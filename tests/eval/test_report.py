@@ -207,3 +207,16 @@ def test_a_rebuild_removes_what_it_no_longer_produces(folder):
     assert "verdicts_crowder.csv" not in names
     assert not any(p.name.startswith("crowder") for p in (folder / "figures").iterdir())
     assert not [p for p in folder.iterdir() if p.name.startswith(".")], "no temporary left"
+
+
+def test_two_policies_with_one_seed_give_a_report_that_says_why_there_is_no_comparison(
+        tmp_path):
+    """It crashed (KeyError 'policy') on the empty comparison table."""
+    from boids_env.eval.runner import PolicySpec, run_suite
+    from boids_env.eval.suites import Case, Suite
+
+    suite = Suite("one", (Case("a", "g", "f", "a", {"max_cycles": 30}),), seeds=(0,))
+    run_suite([PolicySpec.parse("reynolds"), PolicySpec.parse("random")], suite, tmp_path,
+              workers=1, backend="inline", progress=False)
+    report = build_report(tmp_path).read_text()
+    assert "needs at least 2 seeds" in report
