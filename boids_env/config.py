@@ -74,6 +74,27 @@ class WorldConfig:
     2·``arena_half_size``; ``small_room``, ``doorway``, ``corridor``, ``pillars``, ``lab``), a
     ROS ``map_server`` YAML or a shapes file (``.toml`` / ``.json``). Choosing one also sets its
     leader path and start unless given (``map=PATH`` is the same as ``scene=PATH``)."""
+    robot: str = "sphero"
+    """The robot preset the robot fields come from (:data:`boids_env.world.robots.PRESETS`:
+    ``sphero``, the study's; ``sphero_sprk``, ``turtlebot3_burger``, ``gritsbot``). Choosing
+    one sets ``robot_radius``, ``robot_mass``, ``max_speed``, ``drive_force``, ``drive``,
+    ``max_turn_rate``, ``max_turn_acceleration``, ``heading_gain`` and ``velocity_law``, and
+    scales ``leader_speed`` and ``layout_spacing`` to the robot, unless they are given too."""
+    drive: str = "holonomic"
+    """``holonomic`` (the study's omnidirectional disc) or ``unicycle`` (moves only along its
+    heading, which turns at a bounded rate; :mod:`boids_env.world.robots`)."""
+    max_turn_rate: float | None = None
+    """Top turn rate (rad/s) of a unicycle (required for one; ignored when holonomic)."""
+    max_turn_acceleration: float | None = None
+    """Largest change of a unicycle's turn rate (rad/s²); None: it follows its command at
+    once."""
+    heading_gain: float | None = None
+    """Gain k (1/s) of a unicycle driver's heading controller, ω = clip(k·sin e, ±ω_max) for
+    a heading error e within 90°; None: ``max_turn_rate``."""
+    velocity_law: str = "turn_and_drive"
+    """A unicycle driver's speed: ``turn_and_drive`` (differential drive: the command's
+    component along the heading, never reversing) or ``roll`` (a Sphero: the command's full
+    speed while the heading turns)."""
 
     def __post_init__(self) -> None:
         _set(self, "arena_half_size", _number("arena_half_size", self.arena_half_size, 0.5, 1000,
@@ -94,6 +115,42 @@ class WorldConfig:
 
         load_scene(self.scene, self.arena_half_size)  # a bad name or file is refused here
         _set(self, "scene", scene_key(self.scene))
+        self._check_robot()
+
+    def _check_robot(self) -> None:
+        """The robot model's fields: a known preset and drive, a unicycle's turn limits."""
+        from boids_env.world.robots import DRIVES, MAX_TURN_PER_SUBSTEP, PRESETS, VELOCITY_LAWS
+
+        if self.robot not in PRESETS:
+            raise ValueError(f"robot must be one of {sorted(PRESETS)}, got {self.robot!r}")
+        if self.drive not in DRIVES:
+            raise ValueError(f"drive must be one of {DRIVES}, got {self.drive!r}")
+        if self.velocity_law not in VELOCITY_LAWS:
+            raise ValueError(f"velocity_law must be one of {VELOCITY_LAWS}, got "
+                             f"{self.velocity_law!r}")
+        for name, hi, unit in (("max_turn_rate", 50.0, "rad/s"),
+                               ("max_turn_acceleration", 10_000.0, "rad/s²"),
+                               ("heading_gain", 1000.0, "1/s")):
+            if getattr(self, name) is not None:
+                _set(self, name, _number(name, getattr(self, name), 0.0, hi, lo_open=True,
+                                         unit=unit))
+        if self.drive != "unicycle":
+            return
+        if self.max_turn_rate is None:
+            raise ValueError("drive='unicycle' needs max_turn_rate (rad/s), e.g. 2.84 for a "
+                             "TurtleBot3 Burger (or choose robot=...)")
+        turn = self.max_turn_rate * self.dt / self.substeps
+        if turn > MAX_TURN_PER_SUBSTEP:
+            raise ValueError(
+                f"a unicycle may turn at most {MAX_TURN_PER_SUBSTEP} rad per physics substep; "
+                f"max_turn_rate={self.max_turn_rate:g} rad/s × dt={self.dt:g} s / substeps="
+                f"{self.substeps} turns {turn:.3g} rad: use substeps >= "
+                f"{math.ceil(self.max_turn_rate * self.dt / MAX_TURN_PER_SUBSTEP)}")
+        gain = self.max_turn_rate if self.heading_gain is None else self.heading_gain
+        if gain * self.dt > 1.0:
+            raise ValueError(
+                f"heading_gain × dt must be at most 1 (the heading would overshoot its command "
+                f"within a control period), got {gain:g} 1/s × {self.dt:g} s")
 
 
 @dataclass(frozen=True)
@@ -137,6 +194,10 @@ class ObservationConfig:
     """Frame of observations and actions, one of FRAMES: ``world`` (the study's) or
     ``leader`` (x along the leader's heading, y to its left; opt-in, for policies that should
     learn a formation relative to the leader)."""
+    action: str = "velocity"
+    """Action space, one of :data:`boids_env.world.robots.ACTIONS`: ``velocity`` (world-frame
+    (vx, vy), the study's; a robot with a heading turns it into (v, ω) with its driver's law)
+    or ``unicycle`` ((v, ω) in the robot's limits, for ``drive="unicycle"``)."""
     relative_actions: bool = False
     """Read each follower's action as a velocity relative to the leader's velocity as that
     follower observes it (noise included): the command is the observed leader velocity plus
@@ -169,6 +230,13 @@ class ObservationConfig:
         _set(self, "pedestrian_range", _number("pedestrian_range", self.pedestrian_range, 0.0,
                                                100, lo_open=True, unit="m"))
         _set(self, "relative_actions", _flag("relative_actions", self.relative_actions))
+        from boids_env.world.robots import ACTIONS
+
+        if self.action not in ACTIONS:
+            raise ValueError(f"action must be one of {ACTIONS}, got {self.action!r}")
+        if self.action == "unicycle" and self.relative_actions:
+            raise ValueError("relative_actions=True reads velocities relative to the leader's; "
+                             "action='unicycle' takes (v, ω): use one of them")
         if self.frame not in FRAMES:
             raise ValueError(f"frame must be one of {FRAMES}, got {self.frame!r}")
 
@@ -176,6 +244,8 @@ class ObservationConfig:
 REWARDS = ("study", "safe")
 """Reward presets: ``study`` (the study's three violations only, the default) and ``safe``
 (adds penalties for crowding, contact and walls; see :data:`SAFE_WEIGHTS`)."""
+ALIGNMENT_SOURCES = ("command", "heading")
+"""What the alignment rule compares (``alignment_source``)."""
 SAFE_WEIGHTS = {"reward_proximity": 1.0, "reward_contact": 4.0, "reward_wall": 2.0}
 """Weights of the safety terms under ``reward="safe"`` (per step, × dt, like a violation)."""
 
@@ -193,6 +263,12 @@ class MetricsConfig:
     wrap_alignment: bool = True
     """Wrap the angle difference into [0°, 180°]. False reproduces the study's analysis, which
     took |θ_leader − θ_i| unwrapped (so −179° vs 180° counted as a violation)."""
+    alignment_source: str = "command"
+    """What the alignment rule compares: ``command`` (the commanded velocities' directions,
+    the study's) or ``heading`` (the robots' measured headings; robots with a heading only,
+    the study's own complaint about its holonomic robots). Both are reported for robots with
+    a heading (``V_align_command``, ``V_align_heading``); this one is ``V_align`` and the
+    reward's."""
     reward_separation: float = 1.0
     """Weight of the separation flag in the reward."""
     reward_cohesion: float = 1.0
@@ -255,6 +331,9 @@ class MetricsConfig:
         if self.separation_threshold >= self.cohesion_threshold:
             raise ValueError(f"separation_threshold ({self.separation_threshold} m) must be "
                              f"below cohesion_threshold ({self.cohesion_threshold} m)")
+        if self.alignment_source not in ALIGNMENT_SOURCES:
+            raise ValueError(f"alignment_source must be one of {ALIGNMENT_SOURCES}, got "
+                             f"{self.alignment_source!r}")
         if self.reward not in REWARDS:
             raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
         for name in SAFE_WEIGHTS:
@@ -327,6 +406,8 @@ class EnvConfig:
         if "scene" in kwargs:
             kwargs = {**_scene_defaults(kwargs["scene"], kwargs.get(
                 "arena_half_size", self.world.arena_half_size)), **kwargs}
+        if "robot" in kwargs:
+            kwargs = {**_robot_defaults(kwargs), **kwargs}
         changes: dict[str, dict[str, Any]] = {}
         for name, value in kwargs.items():
             changes.setdefault(FIELD_OWNER[name], {})[name] = value
@@ -400,6 +481,24 @@ def _scene_defaults(spec: Any, arena_half_size: Any) -> dict[str, Any]:
         return {}
 
 
+def _robot_defaults(kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """The fields robot preset ``kwargs["robot"]`` sets, and the scenario scaled to the robot
+    (its top speed and size, as given or the preset's); nothing for an unknown preset (the
+    world section then refuses it by name)."""
+    from boids_env.world.robots import PRESETS, scaled_scenario
+
+    name = kwargs["robot"]
+    if not isinstance(name, str) or name not in PRESETS:
+        return {}
+    fields = PRESETS[name].fields()
+    speed = kwargs.get("max_speed", fields["max_speed"])
+    radius = kwargs.get("robot_radius", fields["robot_radius"])
+    try:
+        return {**fields, **scaled_scenario(float(speed), float(radius))}
+    except (TypeError, ValueError):
+        return fields
+
+
 def fastest_speed(config: EnvConfig) -> tuple[float, str]:
     """The fastest a robot of this config is ever commanded (m/s) and what sets it: followers'
     ``max_speed``, the ``leader_speed`` (a curve's correction included), or an external
@@ -458,6 +557,19 @@ def _check_physics(config: EnvConfig) -> None:
         raise ValueError(
             f"collision_slop must be at most a quarter of robot_radius ({w.robot_radius / 4:g} m)"
             f", got {w.collision_slop:g} m")
+    obs = config.observation
+    if obs.action == "unicycle" and w.drive != "unicycle":
+        raise ValueError("action='unicycle' takes (v, ω) for robots with a heading; this robot "
+                         "is holonomic (drive='holonomic'): choose robot=... with a unicycle "
+                         "drive, or action='velocity'")
+    if config.metrics.alignment_source == "heading" and w.drive != "unicycle":
+        raise ValueError("alignment_source='heading' compares the robots' headings; this "
+                         "robot is holonomic and has none (drive='holonomic'): choose robot=... "
+                         "with a unicycle drive")
+    if obs.action == "unicycle" and config.realism.active:
+        raise ValueError("realism acts on world-frame velocity commands: use it with "
+                         "action='velocity' (the robots' drivers then turn the executed "
+                         "velocities into (v, ω))")
     fastest, why = fastest_speed(config)
     travel = fastest * w.dt / w.substeps
     if travel > w.robot_radius:

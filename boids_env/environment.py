@@ -23,6 +23,7 @@ from boids_env.world import scenario
 from boids_env.world.leader import ExternalLeader, Leader, make_leader, preview_path, redraw_clear
 from boids_env.world.person import make_person
 from boids_env.world.realism import Realism
+from boids_env.world.robots import RobotModel, odometry_velocities
 from boids_env.world.safety import filter_commands
 from boids_env.world.scenario import ScenarioConfig
 from boids_env.world.space import Snapshot, World
@@ -71,7 +72,10 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     in m/s, world frame. The speed (the vector's norm) is clipped to ``max_speed`` (0.5 m/s);
     the robot tracks the command with a force of at most ``drive_force`` (1 N). With the
     opt-in ``relative_actions`` the action is relative to the leader velocity the follower
-    observes, within ±2·max_speed; with ``frame="leader"`` it is in the leader's frame.
+    observes, within ±2·max_speed; with ``frame="leader"`` it is in the leader's frame. A
+    robot with a heading (``robot="turtlebot3_burger"``, any ``drive="unicycle"``) turns the
+    command into (v, ω) with its driver's law; with ``action="unicycle"`` the action is (v, ω)
+    itself, within ±max_speed m/s and ±max_turn_rate rad/s (:mod:`boids_env.world.robots`).
 
     ## Observation Space
     Per follower ``Box`` of size 6 + 5·K, float32 (see :mod:`boids_env.observations`):
@@ -85,7 +89,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
 
     Slots hold the robots within ``horizon`` (the leader included), nearest first. Opt-in
     blocks follow (:attr:`layout`): static slots, lidar rays and, with a crowd, pedestrian
-    slots (relative position, velocity, valid flag of the nearest pedestrians).
+    slots (relative position, velocity, valid flag of the nearest pedestrians). Robots with a
+    heading add ``own_heading`` (2), ``leader_heading`` (2) and ``neighbour_headings`` (2·K)
+    after these: unit vectors (cos, sin), zero in an empty slot.
 
     ## A person as the leader (opt-in)
     ``leader="person"``: robot 0 is a pedestrian walked by JuPedSim (the ``people`` extra)
@@ -143,7 +149,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or "
                              f"None, got {render_mode!r}")
         self.render_mode = render_mode
-        world, obs_cfg = self.config.world, self.config.observation
+        obs_cfg = self.config.observation
         n = self.config.scenario.robots
         self.possible_agents: list[AgentID] = [f"follower_{i}" for i in range(1, n)]
         self.agents: list[AgentID] = []
@@ -151,9 +157,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self.layout = self._observer.layout
         # one Box object per agent (seeding one agent's space must not reseed the others')
         self.observation_spaces = {a: self._observer.make_space() for a in self.possible_agents}
-        bound = world.max_speed * (2.0 if obs_cfg.relative_actions else 1.0)
-        self.action_spaces = {a: spaces.Box(-bound, bound, (2,), np.float32)
-                              for a in self.possible_agents}
+        self.action_spaces = {a: self._action_box() for a in self.possible_agents}
         x0, y0, x1, y1 = self.config.scene.bounds
         vb = obs_cfg.velocity_bound
         self.state_space = spaces.Box(
@@ -172,6 +176,17 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         """Extra lines the renderer writes over the arena (e.g. the live window's controls)."""
 
     # ----------------------------------------------------------------------------- spaces
+    def _action_box(self) -> spaces.Box:
+        """One follower's action Box: (vx, vy) within ±max_speed (±2·max_speed relative to
+        the leader's), or (v, ω) within the robot's limits (``action="unicycle"``)."""
+        world, obs_cfg = self.config.world, self.config.observation
+        if obs_cfg.action == "unicycle":
+            assert world.max_turn_rate is not None
+            high = np.array([world.max_speed, world.max_turn_rate], dtype=np.float32)
+            return spaces.Box(-high, high, (2,), np.float32)
+        bound = world.max_speed * (2.0 if obs_cfg.relative_actions else 1.0)
+        return spaces.Box(-bound, bound, (2,), np.float32)
+
     def observation_space(self, agent: AgentID) -> spaces.Box:
         return self.observation_spaces[self._known(agent)]
 
@@ -221,12 +236,15 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         except ValueError:  # no room for the crowd: no half-made episode to step on
             self._world, self.agents = None, []
             raise
+        self._initial_headings = (np.full(sc.robots, self._leader.initial_heading)
+                                  if wc.drive == "unicycle" else None)
         self._world = self._new_world()
         self._scene = scene
         self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
         self._tail_steps = round(sc.tail_time / wc.dt)
         self._finish_step: int | None = None
-        self._history: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None,
+        self._history: list[tuple[npt.NDArray[np.float64] | None,
+                                  npt.NDArray[np.float64] | None,
                                   npt.NDArray[np.float64] | None]] = []
         self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)
         self._observer = Observer(episode)
@@ -261,7 +279,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         cfg = self.episode_config
         sc = cfg.scenario
         people = self._people
-        return World(cfg.world, self._initial_positions, cfg.scene,
+        return World(cfg.world, self._initial_positions, cfg.scene, self._initial_headings,
                      leader_radius=None if sc.leader == "robot" else sc.person_radius,
                      pedestrians=None if people is None else people.start_pedestrians,
                      pedestrian_radius=sc.person_radius)
@@ -331,11 +349,16 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         limited in the world frame (as a simulator receiving world-frame commands limits
         it, so that a policy in another frame gets the same commands bit for bit), the
         physics, the metrics and rewards, the episode's end, the next observations."""
-        commands = clip_speed(self._observer.to_world(actions),
-                              self.episode_config.world.max_speed)
         world, leader = self._world, self._leader
         assert world is not None and leader is not None
         cfg = self.episode_config
+        native = cfg.observation.action == "unicycle"
+        if native:  # (v, ω) within the robot's limits; the leader's driver turns its own
+            wc = cfg.world
+            high = np.array([wc.max_speed, wc.max_turn_rate], dtype=np.float64)
+            commands = np.clip(actions, -high, high)  # float64 limits, not the Box's float32
+        else:
+            commands = clip_speed(self._observer.to_world(actions), cfg.world.max_speed)
         sc = cfg.scenario
         if sc.startup_hold and world.time < sc.startup_time - 1e-9:
             commands = np.zeros_like(commands)
@@ -346,21 +369,28 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             crowd = (self._people.pedestrians - world.pedestrian_positions) / dt
         full = np.empty((len(commands) + 1, 2))
         full[0] = leader.command(world.time, world.positions[0])
-        if cfg.safety.safety_filter:
+        if cfg.safety.safety_filter and not native:
             commands = filter_commands(commands, world.positions, world.velocities, full[0],
                                        cfg.world.robot_radius, cfg.world.max_speed,
                                        self._scene, cfg.safety)
-        full[1:] = commands
         self._still_steps = 0 if full[0].any() else self._still_steps + 1
-        if self._realism is None:
+        if native:
+            full[0] = world.model.native(full[:1], world.heading_vectors[:1])[0]
+            full[1:] = commands
+            world.step(None, native=full)
+            self._history.append((None, None, crowd, full))
+        elif self._realism is None:
+            full[1:] = commands
             world.step(full, None, crowd)
-            self._history.append((world.commanded, None, crowd))
+            self._history.append((full, None, crowd, None))
         else:
+            full[1:] = commands
             executed = self._realism.executed(full, world.positions, world.time)
             world.step(full, executed, crowd)
-            self._history.append((world.commanded, executed, crowd))
+            self._history.append((full, executed, crowd, None))
         cfg = self.episode_config
-        flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded)
+        flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded,
+                                  world.headings)
         stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])  # (3, F)
         self._counts += stacked
         terms = np.vstack([self._reward_scale * stacked,  # metrics.reward_terms as one array
@@ -444,7 +474,11 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         world = self._world
         assert world is not None
         crowd = Crowd(world.pedestrian_positions, world.pedestrian_velocities) if world.p else None
-        obs = self._observer(world.positions, world.velocities, crowd)
+        headings = world.heading_vectors
+        velocities = world.velocities
+        if headings is not None:  # what a controller reads from odometry (REP 105)
+            velocities = odometry_velocities(velocities, headings)
+        obs = self._observer(world.positions, velocities, crowd, headings)
         return obs if self._realism is None else self._realism.observations(obs)
 
     # -------------------------------------------------------------------------- queries
@@ -493,6 +527,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             raise RuntimeError("no episode yet; call reset() first")
         return self._leader
 
+    @property
+    def robot_model(self) -> RobotModel:
+        """The episode's robot model (:mod:`boids_env.world.robots`); ``robot_model.native``
+        is its driver's law, world-frame velocities -> the native command."""
+        return self._require_world().model
+
     def set_leader_command(self, velocity: npt.ArrayLike) -> None:
         """Velocity (m/s) for an ``external`` leader, used from the next step on."""
         if not isinstance(self.leader, ExternalLeader):
@@ -526,7 +566,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         frame = Frame(world.positions, world.steps, self.episode_config.world.robot_radius,
                       status, self.episode_config.observation.horizon, dict(self.overlays),
                       tuple(self.hud_text), None if sc.leader == "robot" else sc.person_radius,
-                      world.pedestrian_positions if world.p else None, sc.person_radius)
+                      world.pedestrian_positions if world.p else None, sc.person_radius,
+                      world.headings)
         return self._renderer.draw(frame)
 
     def close(self) -> None:
@@ -550,8 +591,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self.__dict__.update(state)
         if replay:
             self._world = self._new_world()
-            for command, executed, crowd in self._history:
-                self._world.step(command, executed, crowd)
+            for command, executed, crowd, native in self._history:
+                self._world.step(command, executed, crowd, native=native)
 
 
 def parallel_env(render_mode: str | None = None, **kwargs: Any) -> BoidsEnv:

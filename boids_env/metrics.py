@@ -83,14 +83,32 @@ def violation_flags(positions: FloatArray, commanded: FloatArray, *,
     }
 
 
-def flags_for(config: MetricsConfig, positions: FloatArray, commanded: FloatArray
-              ) -> dict[str, BoolArray]:
-    """:func:`violation_flags` with the thresholds of a :class:`MetricsConfig`."""
-    return violation_flags(positions, commanded,
-                           separation_threshold=config.separation_threshold,
-                           cohesion_threshold=config.cohesion_threshold,
-                           alignment_threshold_deg=config.alignment_threshold_deg,
-                           wrap_alignment=config.wrap_alignment)
+def flags_for(config: MetricsConfig, positions: FloatArray, commanded: FloatArray,
+              headings: FloatArray | None = None) -> dict[str, BoolArray]:
+    """:func:`violation_flags` with the thresholds of a :class:`MetricsConfig`; with
+    ``alignment_source="heading"`` the alignment flag compares the measured ``headings``
+    (..., N) (rad) instead of the commands."""
+    flags = violation_flags(positions, commanded,
+                            separation_threshold=config.separation_threshold,
+                            cohesion_threshold=config.cohesion_threshold,
+                            alignment_threshold_deg=config.alignment_threshold_deg,
+                            wrap_alignment=config.wrap_alignment)
+    if config.alignment_source == "heading":
+        if headings is None:
+            raise ValueError("alignment_source='heading' needs the robots' headings (robots "
+                             "with a heading: drive='unicycle')")
+        flags["alignment"] = heading_misalignment(headings, config)
+    return flags
+
+
+def heading_misalignment(headings: FloatArray, config: MetricsConfig) -> BoolArray:
+    """Alignment violations on measured headings: the angle between the leader's heading and
+    each follower's exceeds ``alignment_threshold_deg`` (wrapped unless ``wrap_alignment`` is
+    False, as the study's rule): (..., N) rad -> (..., N-1). Every robot with a heading has
+    one, moving or not, so the study's "zero command points at 0°" plays no part."""
+    deg = np.degrees(np.asarray(headings, dtype=float))
+    turn = angle_difference_deg(deg[..., :1], deg[..., 1:], wrap=config.wrap_alignment)
+    return turn > config.alignment_threshold_deg
 
 
 def reward_scale(config: MetricsConfig, dt: float) -> FloatArray:
@@ -368,7 +386,8 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
                     config: MetricsConfig, dt: float, robot_radius: float,
                     scene: Scene | None = None, leader_path: FloatArray | None = None, *,
                     person_radius: float | None = None, pedestrians: FloatArray | None = None,
-                    pedestrian_radius: float = 0.22) -> dict[str, object]:
+                    pedestrian_radius: float = 0.22, headings: FloatArray | None = None
+                    ) -> dict[str, object]:
     """Everything reported for one episode, from its sampled arrays.
 
     Args:
@@ -384,6 +403,7 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
             :func:`boids_env.proxemics.person_metrics` (None: a robot leads, no such keys).
         pedestrians: (T, P, 2) the crowd's positions, for the crowd's proxemics.
         pedestrian_radius: the pedestrians' radius (m).
+        headings: (T, N) measured headings (rad) of robots that have one.
 
     Returns:
         ``V_sep``, ``V_coh``, ``V_align``, the per-follower ``count_*`` lists,
@@ -391,20 +411,32 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         ``duration`` (T, s), ``steps``, ``min_distance`` (m), ``collisions``,
         ``polarization`` (episode mean), ``mean_leader_distance`` (m), the safety
         metrics of :func:`safety_metrics` (``SAFETY_KEYS``), ``no_sight`` (each
-        follower's fraction of time without line of sight to the leader) and, when the
-        leader stood still for more than 5 s, :func:`parked_metrics`.
+        follower's fraction of time without line of sight to the leader), when the
+        leader stood still for more than 5 s, :func:`parked_metrics`; for robots with a
+        heading also ``V_align_heading`` / ``count_align_heading`` (alignment on the measured
+        headings) and ``V_align_command`` (on the commands, the study's rule), whichever
+        ``alignment_source`` makes ``V_align``.
     """
     if scene is None:
         from boids_env.world.scenes import arena
 
         scene = arena()
-    flags = flags_for(config, positions, commanded)
+    flags = flags_for(config, positions, commanded, headings)
     out: dict[str, object] = dict(episode_violations(flags))
     out.update({k: v.tolist() for k, v in violation_counts(flags).items()})
     # The study's own (unwrapped) alignment rule beside the configured one, for comparisons.
-    study = flags_for(replace(config, wrap_alignment=False), positions, commanded)["alignment"]
+    study = flags_for(replace(config, wrap_alignment=False), positions, commanded,
+                      headings)["alignment"]
     out["V_align_unwrapped"] = float(study.sum() / study.shape[0]) if study.shape[0] else 0.0
     out["count_align_unwrapped"] = study.sum(axis=0).astype(np.int64).tolist()
+    if headings is not None:
+        steps = max(int(positions.shape[0]), 1)
+        on_heading = heading_misalignment(headings, config)
+        on_command = flags_for(replace(config, alignment_source="command"), positions,
+                               commanded)["alignment"]
+        out["V_align_heading"] = float(on_heading.sum() / steps)
+        out["count_align_heading"] = on_heading.sum(axis=0).astype(np.int64).tolist()
+        out["V_align_command"] = float(on_command.sum() / steps)
     out["steps"] = int(positions.shape[0])
     out["duration"] = float(positions.shape[0] * dt)
     out["polarization"] = float(polarization(velocities).mean())

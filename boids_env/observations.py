@@ -12,6 +12,13 @@ name                   size    meaning
                                valid flag (1); empty slots are all zero
 =====================  ======  ==============================================================
 
+Beyond the study, in this order after them: ``static`` (3 per static slot), ``lidar`` (1 per
+ray), and for robots with a heading (``drive="unicycle"``) ``own_heading`` (2: cos, sin of the
+follower's heading), ``leader_heading`` (2) and ``neighbour_headings`` (2·K: the heading of
+the robot in each neighbour slot, zeros in an empty slot). Headings are unit vectors, so they
+turn with the frame like every other vector; appended as blocks of their own, they leave
+every other block where the study's layout has it.
+
 Neighbours are the other robots j with 0 < |p_j − p_i| ≤ horizon, the leader included, as in the
 original controller.
 
@@ -57,7 +64,7 @@ KD_TREE_MIN_ROBOTS = 96
 
 
 BLOCKS = ("own_velocity", "leader_position", "leader_velocity", "neighbours", "static", "lidar",
-          "pedestrians")
+          "pedestrians", "own_heading", "leader_heading", "neighbour_headings")
 """The observation's blocks, in the order they appear (empty blocks are left out)."""
 
 
@@ -80,6 +87,9 @@ class ObservationLayout:
     pedestrians: int = 0
     """P, the number of pedestrian slots (5 values each, as a neighbour slot: relative
     position, velocity, valid flag), nearest first (opt-in, with a crowd)."""
+    headings: bool = False
+    """Whether the robots have headings: the ``own_heading``, ``leader_heading`` and
+    ``neighbour_headings`` blocks (unit vectors) follow the others."""
 
     own_velocity = slice(0, 2)
     leader_position = slice(2, 4)
@@ -92,13 +102,18 @@ class ObservationLayout:
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
                 raise ValueError(f"ObservationLayout {name} must be a non-negative integer, "
                                  f"got {value!r}")
+        if not isinstance(self.headings, bool):
+            raise ValueError(f"ObservationLayout headings must be True or False, got "
+                             f"{self.headings!r}")
 
     @property
     def blocks(self) -> tuple[tuple[str, int], ...]:
         """``(name, size)`` of every non-empty block, in order."""
         sizes = {"own_velocity": 2, "leader_position": 2, "leader_velocity": 2,
                  "neighbours": SLOT_SIZE * self.neighbours, "static": WALL_SIZE * self.static,
-                 "lidar": self.lidar, "pedestrians": SLOT_SIZE * self.pedestrians}
+                 "lidar": self.lidar, "pedestrians": SLOT_SIZE * self.pedestrians,
+                 "own_heading": 2 * self.headings, "leader_heading": 2 * self.headings,
+                 "neighbour_headings": 2 * self.neighbours * self.headings}
         return tuple((name, sizes[name]) for name in BLOCKS if sizes[name])
 
     @classmethod
@@ -112,11 +127,12 @@ class ObservationLayout:
             raise ValueError(f"an observation layout is a list of [name, size] pairs, got "
                              f"{blocks!r}") from None
         layout = cls(named.get("neighbours", 0) // SLOT_SIZE, named.get("static", 0) // WALL_SIZE,
-                     named.get("lidar", 0), named.get("pedestrians", 0) // SLOT_SIZE)
+                     named.get("lidar", 0), pedestrians=named.get("pedestrians", 0) // SLOT_SIZE,
+                     headings="own_heading" in named)
         if list(layout.blocks) != pairs:
             raise ValueError(f"not an observation layout: {pairs!r} (blocks, in order: "
                              f"{list(BLOCKS)}; neighbours and pedestrians 5 per slot, static 3 "
-                             f"per slot)")
+                             f"per slot, neighbour headings 2 per slot)")
         return layout
 
     @property
@@ -220,7 +236,20 @@ class ObservationLayout:
             block = self.block("pedestrians")
             low[block] = np.tile([-r, -r, -vb, -vb, 0.0], self.pedestrians)
             high[block] = np.tile([r, r, vb, vb, 1.0], self.pedestrians)
+        if self.headings:
+            for name in ("own_heading", "leader_heading", "neighbour_headings"):
+                if self.neighbours or name != "neighbour_headings":
+                    low[self.block(name)] = -1.0
+                    high[self.block(name)] = 1.0
         return spaces.Box(low, high, dtype=np.float32)
+
+    def neighbour_headings(self, obs: FloatArray) -> FloatArray:
+        """View of the neighbour headings of a batch ``(..., size)`` as ``(..., K, 2)``
+        (zeros in empty slots); ``ValueError`` for a layout without headings."""
+        if not self.headings:
+            raise ValueError("this observation layout has no headings (a holonomic robot)")
+        block = self.block("neighbour_headings") if self.neighbours else slice(0, 0)
+        return obs[..., block].reshape(*obs.shape[:-1], self.neighbours, 2)
 
 
 def nearest_neighbours(positions: FloatArray, horizon: float, k: int
@@ -325,7 +354,8 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
                        horizon: float, velocity_bound: float, reach: float,
                        frame: npt.NDArray[np.float64] | None = None,
                        sensors: Sensors | None = None,
-                       crowd: Crowd | None = None) -> npt.NDArray[np.float32]:
+                       crowd: Crowd | None = None, headings: FloatArray | None = None
+                       ) -> npt.NDArray[np.float32]:
     """Observations of every follower, one row each: ``(N-1, layout.size)`` float32.
 
     Args:
@@ -339,15 +369,20 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
             world frame).
         sensors: the scene and ranges for the static slots and the lidar.
         crowd: the pedestrians, for the pedestrian slots and the lidar (None: none).
+        headings: (N, 2) unit heading vectors, for a layout with headings.
     """
     n = len(positions)
     followers = n - 1
     world_positions = positions
+    if layout.headings and headings is None:
+        raise ValueError("this observation layout has heading blocks: give the headings")
     if frame is not None:
         # Distances do not change under a rotation, so the neighbour search and its order are
         # the same; rotating the inputs rotates every vector of the observation.
         positions = times_matrix(positions, frame)
         velocities = times_matrix(velocities, frame)
+        if headings is not None:
+            headings = times_matrix(headings, frame)
     # One feature table, a row per robot plus an all-zero row that empty slots point at:
     # position, velocity (clipped), valid flag. Slots are one gather from it.
     table = np.zeros((n + 1, SLOT_SIZE))
@@ -358,6 +393,7 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
     obs[:, layout.own_velocity] = table[1:n, 2:4]
     obs[:, layout.leader_position] = np.clip(positions[0] - positions[1:], -reach, reach)
     obs[:, layout.leader_velocity] = table[0, 2:4]
+    index = None
     if layout.neighbours:
         index, _ = nearest_neighbours(positions, horizon, layout.neighbours)
         gathered = table[index]  # (F, K, 5); an empty slot's -1 picks the all-zero last row
@@ -365,21 +401,45 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         gathered[..., 0:2] -= positions[1:, None, :] * gathered[..., 4:5]
         end = layout.neighbours_start + SLOT_SIZE * layout.neighbours
         obs[:, layout.neighbours_start:end] = gathered.reshape(followers, -1)
+    if layout.headings:
+        assert headings is not None
+        _heading_blocks(obs, layout, headings, index)
+    _sensed_blocks(obs, layout, world_positions, velocity_bound, frame, sensors, crowd)
+    return obs
+
+
+def _heading_blocks(obs: npt.NDArray[np.float32], layout: ObservationLayout,
+                    headings: FloatArray, index: npt.NDArray[np.intp] | None) -> None:
+    """Fills the heading blocks of ``obs``: own, the leader's, each neighbour slot's."""
+    n = len(headings)
+    obs[:, layout.block("own_heading")] = headings[1:]
+    obs[:, layout.block("leader_heading")] = headings[0]
+    if index is not None:
+        padded = np.zeros((n + 1, 2))  # an empty slot's -1 picks the zero last row
+        padded[:n] = headings
+        obs[:, layout.block("neighbour_headings")] = padded[index].reshape(n - 1, -1)
+
+
+def _sensed_blocks(obs: npt.NDArray[np.float32], layout: ObservationLayout,
+                   positions: FloatArray, velocity_bound: float,
+                   frame: npt.NDArray[np.float64] | None, sensors: Sensors | None,
+                   crowd: Crowd | None) -> None:
+    """Fills the static slots, the lidar and the pedestrian slots of ``obs`` (world-frame
+    ``positions`` (N, 2), the leader first)."""
     if layout.static or layout.lidar:
         if sensors is None or sensors.scene is None:
             raise ValueError("static slots and the lidar need the scene (Sensors)")
         if layout.static:
-            obs[:, layout.block("static")] = _static_block(world_positions[1:], layout.static,
+            obs[:, layout.block("static")] = _static_block(positions[1:], layout.static,
                                                            sensors, frame)
         if layout.lidar:
-            obs[:, layout.block("lidar")] = _lidar_block(world_positions, layout.lidar,
-                                                         sensors, frame, crowd)
+            obs[:, layout.block("lidar")] = _lidar_block(positions, layout.lidar, sensors,
+                                                         frame, crowd)
     if layout.pedestrians:
         if sensors is None:
             raise ValueError("pedestrian slots need their range (Sensors)")
         obs[:, layout.block("pedestrians")] = _pedestrian_block(
-            world_positions[1:], layout.pedestrians, sensors, velocity_bound, frame, crowd)
-    return obs
+            positions[1:], layout.pedestrians, sensors, velocity_bound, frame, crowd)
 
 
 def _in_frame(v: FloatArray, frame: npt.NDArray[np.float64] | None) -> FloatArray:
@@ -520,10 +580,12 @@ class Observer:
         return actions if frame is None else times_matrix(actions, frame.T)
 
     def __call__(self, positions: FloatArray, velocities: FloatArray,
-                 crowd: Crowd | None = None) -> npt.NDArray[np.float32]:
+                 crowd: Crowd | None = None, headings: FloatArray | None = None
+                 ) -> npt.NDArray[np.float32]:
         """Observations (N-1, size) of the robots' positions and velocities (N, 2), leader
-        first, and the pedestrians'. In the leader frame the heading first follows the
-        leader's velocity."""
+        first, the pedestrians', and the robots' unit heading vectors (N, 2) for robots with a
+        heading. In the leader frame the frame's heading first follows the leader's
+        velocity."""
         cfg = self.config.observation
         if cfg.frame == "leader":
             vx, vy = float(velocities[0][0]), float(velocities[0][1])
@@ -531,7 +593,7 @@ class Observer:
                 self.heading = math.atan2(vy, vx)
         obs = build_observations(positions, velocities, self.layout, cfg.horizon,
                                  cfg.velocity_bound, self.reach, self.frame, self.sensors,
-                                 crowd)
+                                 crowd, headings)
         if cfg.obs_noise > 0:
             if self._rng is None:
                 raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")
@@ -559,6 +621,8 @@ class Observer:
             walkers = self.layout.pedestrian_slots(noise)
             walkers[..., :4] *= self.layout.pedestrian_slots(obs)[..., 4:5]
             walkers[..., 4] = 0.0
+        if self.layout.headings and self.layout.neighbours:
+            self.layout.neighbour_headings(noise)[...] *= valid[..., None]
         return noise
 
 
@@ -566,4 +630,5 @@ def layout_of(config: EnvConfig) -> ObservationLayout:
     """The observation layout an env config gives (its resolved sensing fields)."""
     obs = config.observation
     return ObservationLayout(obs.neighbours, config.static_slots, obs.lidar_rays,
-                             config.pedestrian_slots)
+                             pedestrians=config.pedestrian_slots,
+                             headings=config.world.drive == "unicycle")

@@ -6,7 +6,9 @@ are :func:`boids_env.metrics.episode_metrics` of the samples after each step, so
 the live env's numbers.
 
 Parquet layout: one row per (step, robot) with columns ``step, time, robot, x, y, vx, vy,
-cmd_vx, cmd_vy``; the resolved config (JSON) is in the schema metadata under ``boids_env``.
+cmd_vx, cmd_vy``; for robots with a heading also ``heading`` (rad), ``angular_velocity``
+(rad/s) and the native command ``cmd_v`` (m/s), ``cmd_w`` (rad/s); the resolved config (JSON)
+is in the schema metadata under ``boids_env``.
 
 Files carry Parquet's page checksums and a digest of their schema and metadata, verified on
 reading (:mod:`boids_env.parquet`): a file damaged on disk or in transfer is refused by name,
@@ -35,6 +37,8 @@ if TYPE_CHECKING:
 
 FloatArray = npt.NDArray[np.float64]
 COLUMNS = ("step", "time", "robot", "x", "y", "vx", "vy", "cmd_vx", "cmd_vy")
+HEADING_COLUMNS = ("heading", "angular_velocity", "cmd_v", "cmd_w")
+"""Columns of robots with a heading (all four or none)."""
 
 
 @dataclass
@@ -55,6 +59,13 @@ class Recording:
     """Per-follower vectors behind each sample's command, by name, each (T+1, N-1, 2): the
     Reynolds policy's weighted rule forces (N; the leader term in m), zero at reset; None
     when the policy exposes none. Drawn as arrows in videos and ROS bag markers."""
+    headings: FloatArray | None = None
+    """(T+1, N) headings (rad, in [−π, π]) of robots that have one; None otherwise."""
+    angular_velocities: FloatArray | None = None
+    """(T+1, N) turn rates (rad/s) of robots with a heading; None otherwise."""
+    native: FloatArray | None = None
+    """(T+1, N, 2) commands as the robots' drivers took them, (v, ω) (what ``cmd_vel``
+    carries for a robot with a heading; zero at reset); None for holonomic robots."""
 
     pedestrians: FloatArray | None = None
     """The crowd's positions (T+1, P, 2) (None without a crowd)."""
@@ -72,7 +83,9 @@ class Recording:
                                        cfg.world.robot_radius, cfg.scene, self.leader_path,
                                        person_radius=None if sc.leader == "robot"
                                        else sc.person_radius, pedestrians=crowd,
-                                       pedestrian_radius=sc.person_radius)
+                                       pedestrian_radius=sc.person_radius,
+                                       headings=None if self.headings is None
+                                       else self.headings[1:])
 
     def to_parquet(self, path: str | Path) -> None:
         """Writes the tidy table with the config in the schema metadata, atomically: a
@@ -97,6 +110,11 @@ class Recording:
             "vx": vel[..., 0].ravel(), "vy": vel[..., 1].ravel(),
             "cmd_vx": cmd[..., 0].ravel(), "cmd_vy": cmd[..., 1].ravel(),
         }
+        if self.headings is not None:
+            assert self.angular_velocities is not None and self.native is not None
+            cols.update(heading=self.headings.ravel(),
+                        angular_velocity=self.angular_velocities.ravel(),
+                        cmd_v=self.native[..., 0].ravel(), cmd_w=self.native[..., 1].ravel())
         for name, vec in (self.forces or {}).items():
             full = np.full((steps, n, 2), np.nan)  # the leader's and pedestrians' rows: NaN
             full[:, 1:robots] = vec
@@ -157,8 +175,32 @@ class Recording:
         pos, vel, cmd = pair("x", "y"), pair("vx", "vy"), pair("cmd_vx", "cmd_vy")
         crowd_pos = pos[:, robots:].copy() if crowd else None
         crowd_vel = vel[:, robots:].copy() if crowd else None
+        heading = _heading_columns(path, table, order, steps, n) if not crowd else (
+            None, None, None)
         return cls(config, time[:, 0].copy(), pos[:, :robots].copy(), vel[:, :robots].copy(),
-                   cmd[:, :robots].copy(), extra, leader_path, forces, crowd_pos, crowd_vel)
+                   cmd[:, :robots].copy(), extra, leader_path, forces, *heading,
+                   pedestrians=crowd_pos, pedestrian_velocities=crowd_vel)
+
+
+def _heading_columns(path: Path, table: Any, order: npt.NDArray[np.intp], steps: int, n: int
+                     ) -> tuple[FloatArray | None, FloatArray | None, FloatArray | None]:
+    """(headings, angular velocities, native commands) of a recording with the heading
+    columns, as (T+1, N) and (T+1, N, 2) arrays; Nones without them; ``ValueError`` for some
+    but not all of them or for non-finite values."""
+    present = [c for c in HEADING_COLUMNS if c in table.column_names]
+    if not present:
+        return None, None, None
+    if len(present) != len(HEADING_COLUMNS):
+        raise ValueError(f"{path}: a recording with headings has the columns "
+                         f"{list(HEADING_COLUMNS)}; this one has only {present}")
+    cols = {}
+    for name in HEADING_COLUMNS:
+        values = table.column(name).to_numpy(zero_copy_only=False)
+        if values.dtype.kind not in "fiu" or not np.all(np.isfinite(values)):
+            raise ValueError(f"{path}: column {name!r} must hold finite numbers")
+        cols[name] = values.astype(np.float64)[order].reshape(steps, n)
+    return (cols["heading"], cols["angular_velocity"],
+            np.stack([cols["cmd_v"], cols["cmd_w"]], axis=-1))
 
 
 def _read_meta(path: Path, raw: bytes) -> tuple[EnvConfig, dict[str, Any], FloatArray | None]:
@@ -275,6 +317,7 @@ class Recorder:
         self._cmd: list[FloatArray] = []
         self._forces: list[dict[str, FloatArray]] = []
         self._crowd: list[tuple[FloatArray, FloatArray]] = []
+        self._heading: list[tuple[FloatArray, FloatArray, FloatArray]] = []
 
     def capture(self, env: BoidsEnv) -> None:
         world = env._require_world()
@@ -286,15 +329,22 @@ class Recorder:
             self._crowd.append((world.pedestrian_positions.copy(),
                                 world.pedestrian_velocities.copy()))
         self._forces.append({k: np.array(v, dtype=float) for k, v in env.overlays.items()})
+        if world.native is not None:
+            self._heading.append((world.headings, world.angular_velocities,
+                                  world.native.copy()))
 
     def recording(self, env: BoidsEnv, **extra: Any) -> Recording:
         path = env.leader.reference_path()
         crowd = (np.array([c[0] for c in self._crowd]), np.array([c[1] for c in self._crowd])
                  ) if self._crowd else (None, None)
+        heading: tuple[FloatArray | None, ...] = (None, None, None)
+        if self._heading:
+            heading = tuple(np.array(part) for part in zip(*self._heading, strict=True))
         return Recording(env.episode_config, np.array(self._time), np.array(self._pos),
                          np.array(self._vel), np.array(self._cmd), dict(extra),
                          None if path is None else np.asarray(path, dtype=float),
-                         self._stacked_forces(), *crowd)
+                         self._stacked_forces(), *heading, pedestrians=crowd[0],
+                         pedestrian_velocities=crowd[1])
 
     def _stacked_forces(self) -> dict[str, FloatArray] | None:
         """The captured overlays as (T+1, F, 2) arrays (zero where a sample had none)."""

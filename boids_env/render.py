@@ -82,6 +82,9 @@ class Frame:
     """(P, 2) the crowd's positions (m), drawn as grey people (None: no crowd)."""
     pedestrian_radius: float = 0.22
     """The pedestrians' radius (m)."""
+    headings: npt.NDArray[np.float64] | None = None
+    """(N,) headings (rad) of robots that have one, drawn as a mark from the centre to the
+    rim; None for the study's holonomic robots."""
 
 
 VIEWS = ("arena", "follow")
@@ -195,6 +198,9 @@ class Renderer:
         self._draw_people(canvas, scene)
         self._draw_robots(canvas, pos, scene.robot_radius, {k for p in touching for k in p},
                           person=scene.leader_radius is not None)
+        if scene.headings is not None:
+            self._draw_headings(canvas, positions, np.asarray(scene.headings, dtype=float),
+                                scene.robot_radius)
         self._draw_arrows(canvas, positions[1:], scene.overlays)
         if self._background is None:  # the margins, over what was drawn beyond the view
             self._draw_margins(canvas)
@@ -375,6 +381,16 @@ class Renderer:
                 pygame.draw.circle(canvas, darker(colour), centre, max(1, round(true)))
             if k in touching:
                 pygame.draw.circle(canvas, style.CONTACT, centre, radius + 2, 2)
+
+    def _draw_headings(self, canvas: Any, positions: npt.NDArray[np.float64],
+                       headings: npt.NDArray[np.float64], robot_radius: float) -> None:
+        """A heading mark per robot: a line from its centre to its rim (as drawn)."""
+        reach = self.robot_radius_px(robot_radius, len(positions)) / self.scale
+        tips = positions + reach * np.stack([np.cos(headings), np.sin(headings)], axis=1)
+        width = 2 if reach * self.scale >= 6 else 1
+        for (x0, y0), (x1, y1) in zip(self.to_px(positions), self.to_px(tips), strict=True):
+            pygame.draw.line(canvas, style.HEADING, (int(x0), int(y0)), (int(x1), int(y1)),
+                             width)
 
     def _draw_arrows(self, canvas: Any, followers: npt.NDArray[np.float64],
                      overlays: dict[str, npt.NDArray[np.float64]]) -> None:

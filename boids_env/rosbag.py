@@ -43,6 +43,7 @@ from boids_env.files import atomic_path
 from boids_env.recording import Recording
 from boids_env.rosmsgs import Messages, headings
 from boids_env.world.layout import follower_cells
+from boids_env.world.robots import quaternion_headings, to_body, to_world
 
 try:
     from rosbags import rosbag1, rosbag2
@@ -145,20 +146,20 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
                  serialize(build.occupancy_grid(first, scene.occupancy()), GRID))
     writer.write(connect(OBSTACLES_TOPIC, MARKERS, **latched), first,
                  serialize(build.obstacle_markers(first, scene), MARKERS))
-    yaws = headings(recording.commanded, recording.velocities)
+    yaws, velocities, commands, turns = _motion(recording)
     per_second = max(1, round(1.0 / recording.config.world.dt))
     for step, offset in enumerate(recording.time):
         ns = origin + round(float(offset) * 1e9)
-        pos, vel, com = (recording.positions[step], recording.velocities[step],
-                         recording.commanded[step])
+        pos, vel, com = recording.positions[step], velocities[step], commands[step]
         writer.write(clock, ns, serialize(build.clock(ns), CLOCK))
         writer.write(tf, ns, serialize(build.tf(ns, step, pos, yaws[step]), TF))
         for k in range(n):
             header = build.header(ns, step)
-            msg = build.odometry(header, k, pos[k], vel[k], float(yaws[step, k]))
+            msg = build.odometry(header, k, pos[k], vel[k], float(yaws[step, k]),
+                                 float(turns[step, k]))
             writer.write(odom[k], ns, serialize(msg, ODOM))
-            writer.write(cmd[k], ns, serialize(build.twist(float(com[k, 0]), float(com[k, 1])),
-                                               TWIST))
+            writer.write(cmd[k], ns, serialize(build.twist(float(com[k, 0]), float(com[k, 1]),
+                                                           float(com[k, 2])), TWIST))
         writer.write(robots, ns, serialize(build.robot_markers(ns, step, pos, yaws[step]),
                                            MARKERS))
         if person is not None:
@@ -178,6 +179,27 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
             assert recording.leader_path is not None
             writer.write(route, ns, serialize(build.path(ns, step, recording.leader_path),
                                               PATH))
+
+
+def _motion(recording: Recording) -> tuple[np.ndarray, ...]:
+    """Headings (T, N), odometry velocities (T, N, 2), cmd_vel (T, N, 3: linear.x, linear.y,
+    angular.z) and turn rates (T, N) as the bag carries them: the study's robots' world-frame
+    velocities and commands, headed along the command (else the motion); a robot with a
+    heading's own heading, its twist in its own frame and its (v, ω) (REP 105)."""
+    if recording.headings is None:
+        still = np.zeros((*recording.commanded.shape[:2], 1))
+        commands = np.concatenate([recording.commanded, still], axis=-1)
+        return (headings(recording.commanded, recording.velocities), recording.velocities,
+                commands, np.zeros(recording.positions.shape[:2]))
+    assert recording.native is not None and recording.angular_velocities is not None
+    yaws = recording.headings
+    unit = np.stack([np.cos(yaws), np.sin(yaws)], axis=-1)  # a bag's orientation, not physics
+    steps, n = yaws.shape
+    body = to_body(recording.velocities.reshape(-1, 2), unit.reshape(-1, 2)).reshape(steps, n,
+                                                                                      2)
+    native = recording.native
+    commands = np.stack([native[..., 0], np.zeros((steps, n)), native[..., 1]], axis=-1)
+    return yaws, body, commands, recording.angular_velocities
 
 
 def _to_ns(seconds: float) -> int:
@@ -273,15 +295,17 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
                 msg = reader.deserialize(raw, conn.msgtype)
                 if match.group(2) == "odom":
                     p, v = msg.pose.pose.position, msg.twist.twist.linear
-                    odom.setdefault(k, []).append((stamp, p.x, p.y, v.x, v.y))
+                    q, w = msg.pose.pose.orientation, msg.twist.twist.angular.z
+                    odom.setdefault(k, []).append((stamp, p.x, p.y, v.x, v.y, q.z, q.w, w))
                 else:
-                    cmd.setdefault(k, []).append((msg.linear.x, msg.linear.y))
+                    cmd.setdefault(k, []).append((msg.linear.x, msg.linear.y,
+                                                  msg.angular.z))
     except FileNotFoundError:
         raise
     except Exception as exc:
         raise ValueError(f"cannot read ROS bag {path}: {exc}") from exc
     robots = _check_topics(path, odom, cmd, odometry_only, answers)
-    o = np.array([odom[k] for k in robots], dtype=np.float64)  # (N, T, 5)
+    o = np.array([odom[k] for k in robots], dtype=np.float64)  # (N, T, 8)
     c = _commands(o, cmd, robots, odometry_only, answers)
     for name, values in (("odom", o), ("cmd_vel", c)):
         bad = sorted({int(k) for k in np.nonzero(~np.isfinite(values))[0]})
@@ -298,18 +322,43 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
         # metrics come out bit-identical
         return np.ascontiguousarray(a.transpose(1, 0, 2))
 
-    return Recording(base, (stamps - stamps[0]) / 1e9, samples(o[:, :, 1:3]),
-                     samples(o[:, :, 3:5]), samples(c), leader_path=leader_path)
+    time = (stamps - stamps[0]) / 1e9
+    if base.world.drive == "unicycle" and not odometry_only:
+        return _heading_recording(base, time, o, c, leader_path)
+    return Recording(base, time, samples(o[:, :, 1:3]), samples(o[:, :, 3:5]),
+                     samples(c[:, :, :2]), leader_path=leader_path)
+
+
+def _heading_recording(config: EnvConfig, time: np.ndarray, o: np.ndarray, c: np.ndarray,
+                       leader_path: np.ndarray | None) -> Recording:
+    """The recording of robots with a heading (``config``'s drive): odometry oriented along
+    the heading, its twist in the robot's frame, ``cmd_vel`` the robot's (v, ω) (REP 105).
+    A command's world-frame direction is the heading its robot had when it was given (the
+    sample before)."""
+    z, w = o[:, :, 5].T, o[:, :, 6].T  # (T, N)
+    unit = quaternion_headings(z, w)
+    steps, n = z.shape
+    velocities = to_world(np.ascontiguousarray(o[:, :, 3:5].transpose(1, 0, 2)).reshape(-1, 2),
+                          unit.reshape(-1, 2)).reshape(steps, n, 2)
+    native = np.ascontiguousarray(c[:, :, [0, 2]].transpose(1, 0, 2))
+    before = np.concatenate([unit[:1], unit[:-1]])
+    commanded = before * native[..., :1]
+    yaw = 2.0 * np.arctan2(z, w)
+    yaw = yaw - 2 * math.pi * np.round(yaw / (2 * math.pi))
+    return Recording(config, time, np.ascontiguousarray(o[:, :, 1:3].transpose(1, 0, 2)),
+                     velocities, commanded, leader_path=leader_path, headings=yaw,
+                     angular_velocities=np.ascontiguousarray(o[:, :, 7].T), native=native)
 
 
 def _commands(o: np.ndarray, cmd: dict[int, list], robots: list[int], odometry_only: bool,
               answers: bool) -> np.ndarray:
-    """The commands (N, T, 2) per sample: the measured velocities (``odometry_only``), the
-    k-th command at sample k+1 (``answers``; zero at sample 0), or the k-th at sample k."""
+    """The commands (N, T, 3: linear.x, linear.y, angular.z) per sample: the measured
+    velocities (``odometry_only``), the k-th command at sample k+1 (``answers``; zero at
+    sample 0), or the k-th at sample k."""
     if odometry_only:
-        return o[:, :, 3:5]
+        return np.concatenate([o[:, :, 3:5], o[:, :, 7:8]], axis=2)
     if answers:
-        c = np.zeros((len(robots), o.shape[1], 2))
+        c = np.zeros((len(robots), o.shape[1], 3))
         c[:, 1:] = np.array([cmd[k][: o.shape[1] - 1] for k in robots], dtype=np.float64)
         return c
     return np.array([cmd[k] for k in robots], dtype=np.float64)

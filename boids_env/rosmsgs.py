@@ -96,18 +96,19 @@ class Messages:
         point = self.t["geometry_msgs/msg/Point"](x=x, y=y, z=z)
         return self.t["geometry_msgs/msg/Pose"](position=point, orientation=self.quaternion(yaw))
 
-    def twist(self, vx: float, vy: float) -> Any:
+    def twist(self, vx: float, vy: float, turn_rate: float = 0.0) -> Any:
         vec = self._vec
         return self.t["geometry_msgs/msg/Twist"](linear=vec(x=vx, y=vy, z=0.0),
-                                                 angular=vec(x=0.0, y=0.0, z=0.0))
+                                                 angular=vec(x=0.0, y=0.0, z=turn_rate))
 
     def odometry(self, header: Any, k: int, position: FloatArray, velocity: FloatArray,
-                 yaw: float) -> Any:
+                 yaw: float, turn_rate: float = 0.0) -> Any:
         """nav_msgs/Odometry of robot ``k``: pose (position, heading) and measured velocity in
-        the map frame, as the original's odometry."""
+        the map frame, as the original's odometry (for a robot with a heading: the twist in
+        its own frame and its turn rate, REP 105)."""
         t = self.t
         pose = self.pose(float(position[0]), float(position[1]), yaw)
-        twist = self.twist(float(velocity[0]), float(velocity[1]))
+        twist = self.twist(float(velocity[0]), float(velocity[1]), turn_rate)
         return t["nav_msgs/msg/Odometry"](
             header=header, child_frame_id=f"robot_{k}",
             pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=self._zero36),

@@ -27,6 +27,8 @@ PERSONAL_SPACE_RADIUS = 1.2
 """Radius (m) of the drawn personal-space ring."""
 CONTACT: Colour = (20, 20, 20)
 """Ring around a robot that touches another."""
+HEADING: Colour = (255, 255, 255)
+"""Heading mark of a robot that has one (centre to rim): white on red or blue."""
 RULE_COLOURS: dict[str, Colour] = {
     # distinct from each other and from the robots' red and blue (colour-blind-safe hues)
     "separation": (255, 127, 14),  # orange

@@ -13,6 +13,7 @@ from boids_env.config import PATHS, PRESETS, EnvConfig
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
 from boids_env.world.realism import REALISMS
+from boids_env.world.robots import PRESETS as ROBOTS
 from boids_env.world.scenario import LEADERS
 
 MAX_FAST = 1000.0
@@ -80,7 +81,12 @@ def parse_setting(text: str) -> tuple[str, Any]:
 def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) -> None:
     """The env-config flags :func:`_env_fields` reads (``boids run``, ``boids ros sim``)."""
     p.add_argument("--robots", type=int, default=None, help="group size, leader included (13)")
-    p.add_argument("--leader-speed", type=float, default=None, help="m/s (0.55)")
+    p.add_argument("--robot", choices=sorted(ROBOTS), default=None,
+                   help="robot model: sphero (the study's, default), sphero_sprk, "
+                   "turtlebot3_burger, gritsbot; sets the leader speed (1.1 x its top speed) "
+                   "and start grid unless given")
+    p.add_argument("--leader-speed", type=float, default=None,
+                   help="m/s (0.55; with --robot, 1.1 x its top speed)")
     p.add_argument("--scene", default=None,
                    help="arena (the study's, default), small_room, doorway, corridor, pillars, "
                    "lab, or a shapes file (.toml/.json); sets the scene's leader path and start "
@@ -227,8 +233,9 @@ def _check_run_flags(args: argparse.Namespace) -> None:
 
 
 def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
-    given = ("robots", "leader_speed", "path", "scene", "start", "start_heading", "leader",
-             "leader_trajectory", "crowd", "max_cycles", "arena_half_size", "realism")
+    given = ("robots", "robot", "leader_speed", "path", "scene", "start", "start_heading",
+             "leader", "leader_trajectory", "crowd", "max_cycles", "arena_half_size",
+             "realism")
     fields: dict[str, Any] = {name: getattr(args, name) for name in given
                               if getattr(args, name) is not None}
     if args.leader_trajectory is not None:
@@ -320,7 +327,9 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                    help="preset of a bare 'reynolds' policy (paper)")
     p.add_argument("--suite", default="paper", help="paper (default), robustness, "
                    "generalisation (the learned policy's trained and unseen cases), scenes, "
-                   "person (a person leading: speed, group size, crowd), or a TOML file")
+                   "deployment, person (a person leading: speed, group size, crowd), "
+                   "robot_types (the study's experiment for every robot preset), or a TOML "
+                   "file")
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=None, help="seeds 0..N-1 (suite's: 5)")
     seeds.add_argument("--blocks", type=int, default=None, metavar="K",

@@ -24,6 +24,7 @@ from boids_env.eval.folder import REPORT_OUTPUTS, record_files
 from boids_env.eval.html import write_html
 from boids_env.eval.markup import escape
 from boids_env.eval.people_report import has_people, person_section
+from boids_env.eval.robot_types import robot_sections
 from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, pair_difference
 from boids_env.eval.study import (
     GROUP_OF_RQ,
@@ -292,6 +293,10 @@ def build_report(out: str | Path) -> Path:
         csvs["stats_tukey_study.csv"] = tukey_study
         md += _paper_sections(table, tukey_study, policies, csvs, summary)
         md += _block_section(table, policies, per_follower, csvs, summary)
+    if suite["name"] == "robot_types":
+        _, tukey_study = analyse(table, per_follower, followers, unwrapped=True)
+        csvs["stats_tukey_study.csv"] = tukey_study
+        md += robot_sections(table, tukey_study, policies, _md_table, csvs, summary)
     md += ["## Results per case", "",
            f"Two alignment columns: the rule the episodes ran with ({rule}) and the study's "
            f"unwrapped rule. Distances in m.", "",
@@ -529,7 +534,8 @@ def _write_csvs(out: Path, csvs: dict[str, pd.DataFrame]) -> None:
     does not (another suite's verdicts, a comparison of policies no longer in the table)."""
     for name, df in csvs.items():
         write_text(out / name, df.to_csv(index=False))
-    stale = [p for p in out.glob("verdicts_*.csv") if p.name not in csvs]
+    stale = [p for p in (*out.glob("verdicts_*.csv"), *out.glob("robot_findings_*.csv"))
+             if p.name not in csvs]
     stale += [out / n for n in OWN_CSVS if n not in csvs and (out / n).is_file()]
     for path in stale:
         path.unlink()

@@ -20,6 +20,7 @@ from boids_env.config import (
     check_integer,
     reynolds_params,
 )
+from boids_env.world.robots import PRESETS as ROBOT_PRESETS
 
 POLICY_FIELDS = tuple(f.name for f in fields(ReynoldsParams))
 """Case fields that parameterise the Reynolds policy (others are env config fields)."""
@@ -261,9 +262,65 @@ trained on (``unseen``: the lab's ROS map, a shapes-file room, the study's squar
 and passing 0.26 m from the walls, a 0.25 m/s leader, a leader standing 30 s 20 s into the
 square) and 61 robots, its largest trained group; 13 robots at 0.55 m/s otherwise."""
 
+TURTLEBOT = {"robot": "turtlebot3_burger"}
+TURTLEBOT_GENERALISATION = Suite("turtlebot_generalisation", (
+    Case("default", "trained", "case", "default", dict(TURTLEBOT)),
+    Case("7 robots", "trained", "case", "7 robots", {**TURTLEBOT, "robots": 7}),
+    Case("19 robots", "trained", "case", "19 robots", {**TURTLEBOT, "robots": 19}),
+    Case("leader 0.22", "trained", "case", "leader 0.22", {**TURTLEBOT, "leader_speed": 0.22}),
+    Case("leader 0.264", "trained", "case", "leader 0.264",
+         {**TURTLEBOT, "leader_speed": 0.264}),
+    Case("waypoint square", "unseen", "case", "waypoint square",
+         {**TURTLEBOT, "path": "waypoints",
+          "waypoints": ((3.0, 3.0), (-3.0, 3.0), (-3.0, -3.0), (3.0, -3.0), (3.0, 3.0))}),
+    Case("25 robots", "unseen", "case", "25 robots", {**TURTLEBOT, "robots": 25}),
+    Case("leader 0.18", "unseen", "case", "leader 0.18", {**TURTLEBOT, "leader_speed": 0.18}),
+    Case("leader 0.30", "unseen", "case", "leader 0.30", {**TURTLEBOT, "leader_speed": 0.3}),
+    Case("figure-eight 3 m", "unseen", "case", "figure-eight 3 m",
+         {**TURTLEBOT, "robots": 10, "path": "figure_eight", "path_size": 3.0})))
+"""The learned TurtleBot3 follower's bar (recipe ``ppo_turtlebot``): five cases its recipe
+trains on and five it does not (a path, a group size, leader speeds below and above its range,
+a path size; picked before training), 13 TurtleBots at 0.242 m/s (1.1 × their top speed) on
+the study's square otherwise."""
+
+LEADER_RATIOS = (1.0, 1.1, 1.2)
+"""The study's leader speeds over the followers' top speed (0.5 / 0.55 / 0.6 m/s over 0.5)."""
+
+
+def robot_cases(robot: str) -> list[Case]:
+    """The study's Table III for robot preset ``robot``: its research questions as groups
+    ``rq1@robot`` (leader 1.0 / 1.1 / 1.2 × the robot's top speed, labelled ``1.0x`` …),
+    ``rq2@robot`` (leader weight 1.0 / 1.1 / 1.2) and ``rq3@robot`` (7 / 13 / 19 robots), 13
+    robots at 1.1 × the top speed and weight 1.0 otherwise (the study's case for that
+    robot)."""
+    top = ROBOT_PRESETS[robot].max_speed
+    speeds = {f"{r:.1f}x": round(r * top, 9) for r in LEADER_RATIOS}
+    base = {"robot": robot, "robots": 13, "leader_speed": speeds["1.1x"]}
+    cases = []
+    sweeps = (("rq1", "leader_speed", [(k, {"leader_speed": v}) for k, v in speeds.items()]),
+              ("rq2", "leader_weight", [(w, {"leader_weight": float(w)})
+                                        for w in ("1.0", "1.1", "1.2")]),
+              ("rq3", "robots", [(n, {"robots": int(n)}) for n in ("7", "13", "19")]))
+    for group, factor, levels in sweeps:
+        for label, values in levels:
+            merged = {**base, "leader_weight": 1.0, **values}
+            cases.append(Case(f"{robot}: {factor}={label}", f"{group}@{robot}", factor, label,
+                              {k: v for k, v in merged.items() if k not in POLICY_FIELDS},
+                              {k: v for k, v in merged.items() if k in POLICY_FIELDS}))
+    return cases
+
+
+ROBOT_TYPES = Suite("robot_types", tuple(c for robot in ROBOT_PRESETS
+                                         for c in robot_cases(robot)),
+                    per_follower=tuple(f"rq3@{robot}" for robot in ROBOT_PRESETS))
+"""The study's three research questions for every robot preset (the study's open question on
+robot type), with the study's statistics per robot; the report says, finding by finding,
+which hold for which robot."""
+
 SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION,
           "scenes": SCENES, "deployment": DEPLOYMENT, "person": PERSON,
-          "person_learned": PERSON_LEARNED}
+          "person_learned": PERSON_LEARNED, "robot_types": ROBOT_TYPES,
+          "turtlebot_generalisation": TURTLEBOT_GENERALISATION}
 
 
 def load_suite(spec: str | Path) -> Suite:

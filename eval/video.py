@@ -58,7 +58,8 @@ def running_status(recording: Recording) -> list[str]:
     """The HUD line of every sample: time and the V_* of the episode so far (as the env's
     own HUD shows them)."""
     cfg = recording.config
-    flags = metrics.flags_for(cfg.metrics, recording.positions[1:], recording.commanded[1:])
+    flags = metrics.flags_for(cfg.metrics, recording.positions[1:], recording.commanded[1:],
+                              None if recording.headings is None else recording.headings[1:])
     samples = np.arange(1, len(recording.time))
     lines = [f"t = {recording.time[0]:5.1f} s   V_sep 0.000   V_coh 0.000   V_align 0.000"]
     so_far = {key: np.cumsum(flags[name].sum(axis=1)) / samples
@@ -87,10 +88,11 @@ def frames(recording: Recording, *, frame_every: int = FRAME_EVERY, view: str = 
             overlays = {name: vec[s] for name, vec in (recording.forces or {}).items()}
             sc = cfg.scenario
             crowd = None if recording.pedestrians is None else recording.pedestrians[s]
+            headings = None if recording.headings is None else recording.headings[s]
             scene = Frame(recording.positions[s], s, cfg.world.robot_radius, status[s],
                           cfg.observation.horizon, overlays, (),
                           None if sc.leader == "robot" else sc.person_radius, crowd,
-                          sc.person_radius)
+                          sc.person_radius, headings)
             shown = s % frame_every == 0 or s == last
             if shown:
                 image = renderer.draw(scene)

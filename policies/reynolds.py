@@ -35,6 +35,7 @@ zone) replaces it with
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -206,6 +207,7 @@ class ReynoldsPolicy(BatchPolicy):
     def __init__(self, preset: str = "paper", *, layout: ObservationLayout | None = None,
                  **overrides: Any) -> None:
         self.params = reynolds_params(preset, **overrides)
+        self._given = frozenset(overrides)
         self.preset = preset
         self.forces: dict[str, FloatArray] = {}
         self.layout = layout
@@ -214,14 +216,18 @@ class ReynoldsPolicy(BatchPolicy):
         self._steps = 0
 
     def bind(self, env: Any) -> None:
-        """Reads ``env``'s observation layout and whether its scene is the study's arena
-        (any object with ``layout`` and ``config``/``episode_config``: a BoidsEnv)."""
+        """Reads ``env``'s observation layout, whether its scene is the study's arena (any
+        object with ``layout`` and ``config``/``episode_config``: a BoidsEnv) and its robots'
+        top speed, which becomes the controller's ``max_speed`` unless that was given (the
+        study's Sphero: 0.5 m/s either way)."""
         self.layout = env.layout
         config = getattr(env, "episode_config", None) or env.config
         auto = config.world.scene != "arena"
         wanted = self.params.obstacle_avoidance
         self.avoid = bool(self.layout.static) and (auto if wanted is None else wanted)
         self.pedestrian_radius = config.scenario.person_radius
+        if "max_speed" not in self._given and self.params.max_speed != config.world.max_speed:
+            self.params = dataclasses.replace(self.params, max_speed=config.world.max_speed)
 
     def reset(self, seed: int | None = None) -> None:
         self._steps = 0

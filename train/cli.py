@@ -25,8 +25,8 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
                        "tb/ (TensorBoard) and manifest.json to --out, which must be empty or "
                        "new unless --overwrite (or a --resume of the training there).")
     p.add_argument("--config", help="a TOML file of TrainConfig fields, or the name of a "
-                   "shipped recipe (ppo_safe, ppo_safe_stage2, ppo_study, ppo_person); flags "
-                   "override it")
+                   "shipped recipe (ppo_safe, ppo_safe_stage2, ppo_study, ppo_person, "
+                   "ppo_scenes, ppo_turtlebot ...); flags override it")
     p.add_argument("--out", default="runs/train", help="output folder (runs/train)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace an earlier training in --out (only what it wrote, as listed in "

@@ -1,11 +1,13 @@
-"""The pymunk world: circular Sphero robots in a static scene (the study's walled square
-arena by default; see :mod:`~boids_env.world.scene`). Knows nothing of RL.
+"""The pymunk world: round robots in a static scene (the study's walled square arena by
+default; see :mod:`~boids_env.world.scene`). Knows nothing of RL.
 
-Each robot is a dynamic disc (infinite moment: a holonomic robot does not spin) joined to a
-kinematic *control body* by a pivot joint with ``max_bias = 0`` and ``max_force = drive_force``:
-the joint then only removes the velocity difference between robot and control body, with a
-bounded force, so setting the control body's velocity commands the robot's velocity the way a
-velocity-controlled omnidirectional robot tracks ``cmd_vel``. Contacts are pymunk rigid contacts.
+Each robot is a dynamic disc (infinite moment) joined to a kinematic *control body* by a pivot
+joint with ``max_bias = 0`` and ``max_force = drive_force``: the joint then only removes the
+velocity difference between robot and control body, with a bounded force, so setting the
+control body's velocity commands the robot's velocity the way a velocity-controlled robot
+tracks ``cmd_vel``. How a command sets the control body is the robot model's
+(:mod:`~boids_env.world.robots`: the study's holonomic Sphero, or a unicycle with a heading);
+the world holds one and never asks which. Contacts are pymunk rigid contacts.
 
 All body reads and writes go through :mod:`pymunk.batch` in one call per control step. Its
 buffers list bodies in insertion order (robots, then control bodies) followed by the space's
@@ -15,6 +17,7 @@ static body; :class:`World` checks that order once when it is built.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,9 +28,16 @@ from scipy.spatial import cKDTree
 
 from boids_env.config import WorldConfig
 from boids_env.metrics import CONTACT_TOLERANCE
+from boids_env.world.robots import make_model, odometry_headings, quaternions, wrap_angles
 from boids_env.world.scene import Scene
 
 FloatArray = npt.NDArray[np.float64]
+
+WALL_THICKNESS = 1.0
+"""Radius (m) of the wall segments; their inner faces are at ±arena_half_size. Thick walls:
+a robot would have to travel this far in one physics substep to pass through one (the config
+caps a substep's travel at a robot radius)."""
+
 
 PERSON_MASS = 70.0
 """Mass (kg) of a person's body (the leader person and every pedestrian): a 0.18 kg robot
@@ -58,6 +68,18 @@ class Snapshot:
     """(M, 2) index pairs i < j of robots touching each other."""
     wall_contacts: npt.NDArray[np.int64]
     """(W,) indices of robots touching a wall or an obstacle (static geometry)."""
+    headings: FloatArray | None = None
+    """(N,) headings (rad, in [−π, π], counter-clockwise from +x) of robots that have one
+    (``drive="unicycle"``); None for the study's holonomic robots."""
+    angular_velocities: FloatArray | None = None
+    """(N,) turn rates (rad/s) of robots with a heading; None otherwise."""
+    native: FloatArray | None = None
+    """(N, 2) the last step's commands as the robots' drivers take them, (v, ω) for robots
+    with a heading (what ``cmd_vel`` carries); None otherwise."""
+    quaternions: FloatArray | None = None
+    """(N, 2) orientations of robots with a heading as (z, w) of a rotation about z, exactly
+    what their odometry carries (:func:`~boids_env.world.robots.quaternions`); None
+    otherwise."""
 
 
 _C_STEP = getattr(getattr(pymunk, "_chipmunk", None), "lib", None)
@@ -82,17 +104,21 @@ class World:
         config: the physical world's section of the env config.
         positions: (N, 2) initial robot positions (m), the leader first.
         scene: the static geometry (None: the scene ``config.scene`` names).
+        headings: (N,) initial headings (rad) of robots with a heading (None: +x).
         leader_radius: a person leads (None: a robot): robot 0 is then a disc of this
             radius (m) and :data:`PERSON_MASS` tracking its commanded velocity with up to
             :data:`PERSON_DRIVE`; robots collide with it rigidly and cannot push it.
         pedestrians: (P, 2) initial positions of the crowd (m): discs like the person's, of
             ``pedestrian_radius``, tracking :meth:`step`'s ``pedestrian_velocities``.
         pedestrian_radius: the pedestrians' radius (m).
+
+    People walk among holonomic robots only (the robot models with a heading steer their
+    control bodies within a period, which a person's or a pedestrian's body does not take).
     """
 
     def __init__(self, config: WorldConfig, positions: npt.ArrayLike,
-                 scene: Scene | None = None, *, leader_radius: float | None = None,
-                 pedestrians: npt.ArrayLike | None = None,
+                 scene: Scene | None = None, headings: npt.ArrayLike | None = None, *,
+                 leader_radius: float | None = None, pedestrians: npt.ArrayLike | None = None,
                  pedestrian_radius: float = 0.22) -> None:
         self.config = config
         if scene is None:
@@ -115,16 +141,16 @@ class World:
         h = config.dt / config.substeps
         self._schedule = [h] * (config.substeps - 1) + [h / 2, h / 2]
         self._add_scene()
+        self.model = make_model(config)
         self.person_leader = person = leader_radius is not None
-        self._robots = [self._add_disc(p, PERSON_MASS if k == 0 and person else
-                                       config.robot_mass, leader_radius if k == 0 and person
-                                       else config.robot_radius) for k, p in enumerate(start)]
-        self._controls = [self._add_control(robot, PERSON_DRIVE if k == 0 and person else
-                                            config.drive_force)
-                          for k, robot in enumerate(self._robots)]
         crowd = np.zeros((0, 2)) if pedestrians is None else np.asarray(pedestrians, float)
         crowd = crowd.reshape(-1, 2)
         self.p = len(crowd)
+        if (person or self.p) and self.model.has_heading:
+            raise ValueError("a person leader and crowds walk among holonomic robots only; "
+                             "use robot='sphero' (or another holonomic robot) with people")
+        leader = (PERSON_MASS, leader_radius, PERSON_DRIVE) if person else None
+        self._robots, self._controls = self.model.add_bodies(self.space, start, leader)
         self.pedestrian_radius = pedestrian_radius
         walkers = [self._add_disc(q, PERSON_MASS, pedestrian_radius) for q in crowd]
         self._pedestrians = walkers + [self._add_control(b, PERSON_DRIVE) for b in walkers]
@@ -132,16 +158,20 @@ class World:
         self._check_body_order()
         # One velocity per body in batch order; written in place and handed to pymunk each step.
         self._write_velocities = np.zeros((2 * self.n + 2 * self.p + 1, 2))
+        self._pedestrian_walk: FloatArray | float = 0.0
         self.commanded = np.zeros((self.n, 2))
+        self.native: FloatArray | None = np.zeros((self.n, 2)) if self.model.has_heading \
+            else None
         self.positions = start.copy()
         self.velocities = np.zeros((self.n, 2))
-        self.pedestrian_positions = crowd.reshape(-1, 2).copy()
+        self.pedestrian_positions = crowd.copy()
         self.pedestrian_velocities = np.zeros((self.p, 2))
+        self.model.reset(self, None if headings is None else np.asarray(headings, float))
         self._refresh()
 
     def _add_disc(self, position: FloatArray, mass: float, radius: float) -> pymunk.Body:
-        """A rigid, frictionless disc of ``mass`` with infinite moment (a holonomic robot or
-        a person does not spin) at ``position``."""
+        """A rigid, frictionless disc of ``mass`` with infinite moment (a person does not
+        spin) at ``position``."""
         body = pymunk.Body(mass, float("inf"))
         body.position = (float(position[0]), float(position[1]))
         shape = pymunk.Circle(body, radius)
@@ -208,41 +238,96 @@ class World:
             crowd = data[2 * self.n : 2 * self.n + self.p]  # then their control bodies
             self.pedestrian_positions = crowd[:, :2].copy()
             self.pedestrian_velocities = crowd[:, 2:].copy()
+        self._heading_vectors = (odometry_headings(self.model.vectors)
+                                 if self.model.has_heading else None)
 
-    def step(self, commanded: FloatArray, executed: FloatArray | None = None,
-             pedestrian_velocities: FloatArray | None = None) -> None:
-        """Commands every robot's velocity (N, 2) and advances one control period. With
-        ``executed`` the robots track that instead (realism: noise, stall, latency) while
-        :attr:`commanded` keeps the command as sent. A person leader moves exactly at its
-        command; the crowd at ``pedestrian_velocities`` (P, 2) (zero when not given)."""
-        self.commanded = np.array(commanded, dtype=float)
-        w = self._write_velocities
-        w[: self.n] = self.velocities  # unchanged: batch writes every body's velocity
-        w[self.n : 2 * self.n] = self.commanded if executed is None else executed
-        # People walk as told from the period's first substep (chipmunk moves a body by its
-        # velocity before its joints act, so a drive lags a substep): body and control body
-        # both get the velocity, the drive then only holds it against robots.
+    def step(self, commanded: FloatArray | None, executed: FloatArray | None = None,
+             pedestrian_velocities: FloatArray | None = None, *,
+             native: FloatArray | None = None) -> None:
+        """Commands every robot and advances one control period.
+
+        Args:
+            commanded: (N, 2) world-frame velocity commands as sent. A robot with a heading
+                turns them into (v, ω) with its driver's law.
+            executed: (N, 2) world-frame velocities the robots execute instead (realism:
+                noise, stall, latency) while :attr:`commanded` keeps the command as sent.
+            native: (N, 2) commands in the drivers' own terms, (v, ω), for robots with a
+                heading, in place of ``commanded`` (``action="unicycle"``).
+            pedestrian_velocities: (P, 2) the crowd's velocities (zero when not given).
+
+        :attr:`commanded` records the world-frame command (the metrics' alignment rule reads
+        it): as sent for the holonomic robots; for robots with a heading, what their
+        ``cmd_vel`` says: v along the heading they had when commanded.
+        """
+        model = self.model
+        self._pedestrian_walk = 0.0 if pedestrian_velocities is None else pedestrian_velocities
+        if not model.has_heading:
+            self.commanded = np.array(commanded, dtype=float)
+            model.advance(self, self.commanded if executed is None else executed)
+        else:
+            heading = self.heading_vectors
+            sent = np.array(native, dtype=float) if native is not None else model.native(
+                np.asarray(commanded, dtype=float), heading)
+            self.native = sent
+            self.commanded = heading * sent[:, :1]
+            model.advance(self, sent if executed is None else model.native(
+                np.asarray(executed, dtype=float), heading))
+        self.steps += 1
+        self._refresh()
+
+    def _people_velocities(self, w: FloatArray) -> None:
+        """Writes the people's rows of the velocity buffer ``w`` (after the robots'): a person
+        leader and the crowd walk as told from the period's first substep (chipmunk moves a
+        body by its velocity before its joints act, so a drive lags a substep): body and
+        control body both get the velocity, the drive then only holds it against robots."""
         if self.person_leader:
             w[0] = w[self.n] = self.commanded[0]  # and no robot realism for a person
         if self.p:
             n2, p = 2 * self.n, self.p
-            walk = 0.0 if pedestrian_velocities is None else pedestrian_velocities
-            w[n2 : n2 + p] = walk
-            w[n2 + p : n2 + 2 * p] = walk
-        write = _buffers()[1]
-        write.set_float_buf(w.reshape(-1))
-        batch.set_space_bodies(self.space, batch.BodyFields.VELOCITY, write)
+            w[n2 : n2 + p] = self._pedestrian_walk
+            w[n2 + p : n2 + 2 * p] = self._pedestrian_walk
+
+    def _read_buffer(self) -> batch.Buffer:
+        return _buffers()[0]
+
+    def _write_buffer(self) -> batch.Buffer:
+        return _buffers()[1]
+
+    def _run_substeps(self, before: Callable[[World, float], None] | None = None) -> None:
+        """Runs the control period's physics substeps, calling ``before(world, h)`` ahead of
+        each (a robot model that steers within the period)."""
         if self.steps == 0 or _C_STEP is None:
             for h in self._schedule:
+                if before is not None:
+                    before(self, h)
                 self.space.step(h)  # the first call also runs pymunk's body checks
         else:
             # Space.step's Python wrapper only handles callbacks and deferred adds/removes,
             # which this world never uses; calling chipmunk directly saves ~2 us a substep.
             handle = self.space._space
             for h in self._schedule:
+                if before is not None:
+                    before(self, h)
                 _C_STEP(handle, h)
-        self.steps += 1
-        self._refresh()
+
+    @property
+    def heading_vectors(self) -> FloatArray | None:
+        """(N, 2) unit heading vectors as odometry reports them (through the quaternion a
+        ROS odometry message carries; :func:`~boids_env.world.robots.odometry_headings`);
+        None for robots without a heading."""
+        return self._heading_vectors
+
+    @property
+    def headings(self) -> FloatArray | None:
+        """(N,) headings (rad, in [−π, π]); None for robots without a heading."""
+        if not self.model.has_heading:
+            return None
+        return wrap_angles(self.model.theta)
+
+    @property
+    def angular_velocities(self) -> FloatArray | None:
+        """(N,) turn rates (rad/s); None for robots without a heading."""
+        return self.model.omega.copy() if self.model.has_heading else None
 
     @property
     def time(self) -> float:
@@ -250,9 +335,7 @@ class World:
         return self.steps * self.config.dt
 
     def contacts(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-        """Robot pairs (i < j) touching each other, and robots touching static geometry (a
-        person leader's pairs by robot radius too: its own contacts are in the proxemics
-        metrics)."""
+        """Robot pairs (i < j) touching each other, and robots touching static geometry."""
         r = self.config.robot_radius
         pairs = cKDTree(self.positions).query_pairs(2 * r + CONTACT_TOLERANCE,
                                                     output_type="ndarray")
@@ -263,4 +346,7 @@ class World:
         """Copies of the current arrays and the contacts."""
         pairs, walls = self.contacts()
         return Snapshot(self.time, self.positions.copy(), self.velocities.copy(),
-                        self.commanded.copy(), pairs, walls)
+                        self.commanded.copy(), pairs, walls, self.headings,
+                        self.angular_velocities,
+                        None if self.native is None else self.native.copy(),
+                        quaternions(self.model.vectors) if self.model.has_heading else None)

@@ -74,7 +74,9 @@ def read_live_bag(path: str | Path, config: EnvConfig | None = None) -> Recordin
     time = np.arange(samples) * recording.config.world.dt
     return Recording(recording.config, time, recording.positions, recording.velocities,
                      commanded, {**recording.extra, "source": f"rosbag {Path(path).name}"},
-                     scripted_path(config) if config is not None else None)
+                     scripted_path(config) if config is not None else None,
+                     headings=recording.headings,
+                     angular_velocities=recording.angular_velocities, native=recording.native)
 
 
 def scripted_path(config: EnvConfig) -> np.ndarray | None:

@@ -3,10 +3,13 @@
 Subscribes to every ``/robot_k/odom``, builds each follower's observation with
 :class:`~boids_env.observations.Observer` (the env's own builder, with the env's config: the
 same observations as in-process), asks the policy, and publishes every follower's
-``/robot_k/cmd_vel`` (world frame). A policy with rule forces (the Reynolds controller) also
-gets them drawn in RViz as arrows (``~markers``, visualization_msgs/MarkerArray), and a policy
-with Reynolds parameters gets them as ROS parameters (``~leader_weight`` …) changeable live
-through dynamic_reconfigure (see :mod:`boids_env.eval.ros.reconfigure`).
+``/robot_k/cmd_vel`` (world frame; for robots with a heading, e.g. a TurtleBot3, the robot's
+own (linear.x, angular.z) from its driver's law, as a real TurtleBot3 takes it, with the
+odometry read as REP 105 gives it: oriented, the twist in the robot's frame). A policy with
+rule forces (the Reynolds controller) also gets them drawn in RViz as arrows (``~markers``,
+visualization_msgs/MarkerArray), and a policy with Reynolds parameters gets them as ROS
+parameters (``~leader_weight`` …) changeable live through dynamic_reconfigure (see
+:mod:`boids_env.eval.ros.reconfigure`).
 
 Synchronisation (``sync``): ``stamp`` (default) answers a tick once every robot's odometry with
 that stamp has arrived (the simulator and Stage stamp all robots of a step alike): each tick
@@ -45,7 +48,9 @@ from boids_env.eval.ros.protocol import (
 from boids_env.observations import INITIAL_HEADING, Observer
 from boids_env.policies.base import Policy
 from boids_env.policies.registry import load_policy, split_preset
+from boids_env.vectors import clip_speed
 from boids_env.world.realism import StaleObservations
+from boids_env.world.robots import make_model, quaternion_headings, to_world
 
 SYNC_MODES = ("stamp", "rate")
 FIRST_CONNECTION_WAIT = 1.0
@@ -131,7 +136,10 @@ class ControllerNode:
         self.config = base.replace(**env_fields_for(self.policy, {}))
         self.observer = Observer(self.config)
         self.layout = self.observer.layout
-        bind_policy(self.policy, self)  # the layout and scene (obstacle avoidance), as an env
+        bind_policy(self.policy, self)  # the layout, the scene, the robots' top speed: as an env
+        self.model = make_model(self.config.world)
+        """The robots' model: for robots with a heading, the driver's law the env applies
+        in-process is applied here, and (v, ω) goes out on cmd_vel."""
         self.stale: StaleObservations | None = None
         self.robots = self.config.scenario.robots
         self.dt = self.config.world.dt
@@ -212,7 +220,9 @@ class ControllerNode:
         if self._source is None:
             self._source = msg._connection_header.get("callerid")
         p, v = msg.pose.pose.position, msg.twist.twist.linear
-        tick = self.assembler.add(robot, msg.header.stamp.to_nsec(), p.x, p.y, v.x, v.y)
+        q = msg.pose.pose.orientation
+        tick = self.assembler.add(robot, msg.header.stamp.to_nsec(), p.x, p.y, v.x, v.y, q.z,
+                                  q.w)
         if tick is not None and self.options.sync == "stamp":
             self.ticks.put(tick)
 
@@ -276,23 +286,38 @@ class ControllerNode:
             waited += 0.005
 
     def answer(self, tick: Tick) -> np.ndarray:
-        """The commands (F, 2, world frame) for one tick, published; also the markers."""
+        """The commands (F, 2) for one tick, published (world frame; (v, ω) for robots with
+        a heading); also the markers."""
         self._maybe_reset(tick.stamp_ns)
         self._last_stamp = tick.stamp_ns
         self._apply_params()
-        obs = self.observer(tick.positions, tick.velocities)
+        velocities, headings = tick.velocities, None
+        if self.model.has_heading:  # REP 105 odometry, read back as the env observes it
+            assert tick.quaternions is not None
+            headings = quaternion_headings(tick.quaternions[:, 0], tick.quaternions[:, 1])
+            velocities = to_world(velocities, headings)
+        obs = self.observer(tick.positions, velocities, headings=headings)
         if self.stale is not None:
             obs = self.stale(obs)
         actions = self.policy.act(dict(zip(self.agents, obs, strict=True)))
-        # as the env parses them: float64, then into the world frame (no speed clip here:
-        # the robot, or the simulator, limits the speed, as the env does)
-        commands = self.observer.to_world(
-            np.array([actions[a] for a in self.agents], dtype=np.float64))
+        raw = np.array([actions[a] for a in self.agents], dtype=np.float64)
+        if headings is None:
+            # as the env parses them: float64, then into the world frame (no speed clip here:
+            # the robot, or the simulator, limits the speed, as the env does)
+            commands = self.observer.to_world(raw)
+        elif self.config.observation.action == "unicycle":  # (v, ω) from the policy itself
+            w = self.config.world
+            commands = np.clip(raw, [-w.max_speed, -w.max_turn_rate],
+                               [w.max_speed, w.max_turn_rate])
+        else:  # the robot's driver: its law from the speed-limited world-frame command
+            world = clip_speed(self.observer.to_world(raw), self.config.world.max_speed)
+            commands = self.model.native(world, headings[1:])
         if self._holding(tick.stamp_ns):
             commands = np.zeros_like(commands)
         self._await_listener()
-        for pub, (vx, vy) in zip(self.cmd_pubs, commands.tolist(), strict=True):
-            pub.publish(self.msgs.twist(vx, vy))
+        for pub, (a, b) in zip(self.cmd_pubs, commands.tolist(), strict=True):
+            pub.publish(self.msgs.twist(a, b) if headings is None
+                        else self.msgs.twist(a, 0.0, b))
         forces = getattr(self.policy, "forces", None)
         if forces and self.marker_pub is not None:
             stamp = self.msgs.time(tick.stamp_ns)

@@ -79,10 +79,12 @@ class Messages:
         msg.header.stamp, msg.header.frame_id = self.time(stamp_ns), MAP_FRAME
         return msg, info
 
-    def odometry(self, robot: int, stamp: Any, position: FloatArray, velocity: FloatArray
-                 ) -> Any:
-        """``robot``'s Odometry: position and measured velocity in the map frame, identity
-        orientation (a holonomic Sphero does not turn), zero covariances."""
+    def odometry(self, robot: int, stamp: Any, position: FloatArray, velocity: FloatArray,
+                 quaternion: FloatArray | None = None, turn_rate: float = 0.0) -> Any:
+        """``robot``'s Odometry, zero covariances: position and measured velocity in the map
+        frame with identity orientation (a holonomic Sphero does not turn), or, for a robot
+        with a heading, oriented by ``quaternion`` (z, w) with ``velocity`` the twist in its
+        own frame and ``turn_rate`` its angular.z (REP 105)."""
         msg = self._odom.get(robot)
         if msg is None:
             msg = self._odom[robot] = self.Odometry()
@@ -92,12 +94,18 @@ class Messages:
         msg.header.stamp = stamp
         msg.pose.pose.position.x = float(position[0])
         msg.pose.pose.position.y = float(position[1])
+        if quaternion is not None:
+            msg.pose.pose.orientation.z = float(quaternion[0])
+            msg.pose.pose.orientation.w = float(quaternion[1])
+            msg.twist.twist.angular.z = float(turn_rate)
         msg.twist.twist.linear.x = float(velocity[0])
         msg.twist.twist.linear.y = float(velocity[1])
         return msg
 
-    def transforms(self, stamp: Any, positions: FloatArray) -> Any:
-        """One ``/tf`` message: ``map`` → ``robot_k`` for every robot."""
+    def transforms(self, stamp: Any, positions: FloatArray,
+                   quaternions: FloatArray | None = None) -> Any:
+        """One ``/tf`` message: ``map`` → ``robot_k`` for every robot (turned by its
+        quaternion (z, w) when it has a heading)."""
         out = []
         for robot, (x, y) in enumerate(positions.tolist()):
             tf = self._transforms.get(robot)
@@ -109,14 +117,19 @@ class Messages:
             tf.header.stamp = stamp
             tf.transform.translation.x = x
             tf.transform.translation.y = y
+            if quaternions is not None:
+                tf.transform.rotation.z = float(quaternions[robot, 0])
+                tf.transform.rotation.w = float(quaternions[robot, 1])
             out.append(tf)
         return self.TFMessage(transforms=out)
 
-    def twist(self, vx: float, vy: float) -> Any:
-        """A world-frame velocity command."""
+    def twist(self, vx: float, vy: float, turn_rate: float = 0.0) -> Any:
+        """A velocity command: world-frame (vx, vy), or for a robot with a heading its own
+        frame's (linear.x, 0) and angular.z ``turn_rate``."""
         msg = self.Twist()
         msg.linear.x = float(vx)
         msg.linear.y = float(vy)
+        msg.angular.z = float(turn_rate)
         return msg
 
     def force_markers(self, stamp: Any, positions: FloatArray,

@@ -3,7 +3,10 @@
 **Topics** (the study's): ``/robot_k/odom`` (nav_msgs/Odometry, frame ``map``, child frame
 ``robot_k``; position and measured velocity, world frame, identity orientation: the Spheros are
 holonomic), ``/robot_k/cmd_vel`` (geometry_msgs/Twist, world frame), ``/tf`` (``map`` →
-``robot_k``), ``/clock``; robot 0 is the leader.
+``robot_k``), ``/clock``; robot 0 is the leader. Robots with a heading (``drive="unicycle"``,
+e.g. ``robot="turtlebot3_burger"``) speak as a TurtleBot3 does: odometry oriented along the
+heading with the twist in the child frame (linear.x forward, angular.z the turn rate; REP 105)
+and ``cmd_vel`` in the robot's own frame (linear.x, angular.z).
 
 **Time.** The simulator is the clock (``/use_sim_time`` true), as Stage was. Tick k of an
 episode is stamped ``start + k·dt``. The clock starts at :data:`CLOCK_START` (ROS reads time 0
@@ -207,7 +210,10 @@ class Tick:
     positions: FloatArray
     """(N, 2) m, the leader first."""
     velocities: FloatArray
-    """(N, 2) m/s."""
+    """(N, 2) m/s, the twist's linear part as the odometry carries it: world frame for the
+    study's robots, each robot's own frame for robots with a heading (REP 105)."""
+    quaternions: FloatArray | None = None
+    """(N, 2) the orientation's (z, w) (rotations about z)."""
 
 
 class TickAssembler:
@@ -224,16 +230,17 @@ class TickAssembler:
             raise ValueError(f"robots must be >= 2 (a leader and a follower), got {robots}")
         self.robots = robots
         self._lock = threading.Lock()
-        self._pending: dict[int, dict[int, tuple[float, float, float, float]]] = {}
+        self._pending: dict[int, dict[int, tuple[float, ...]]] = {}
         self._last: int | None = None
         self._epochs: dict[int, int] = {}
         self._epoch = 0
-        self.latest: dict[int, tuple[int, float, float, float, float]] = {}
-        """Each robot's latest odometry (stamp, x, y, vx, vy), for :meth:`snapshot`."""
+        self.latest: dict[int, tuple[Any, ...]] = {}
+        """Each robot's latest odometry (stamp, x, y, vx, vy, qz, qw), for :meth:`snapshot`."""
 
-    def add(self, robot: int, stamp: int, x: float, y: float, vx: float, vy: float
-            ) -> Tick | None:
-        """Records one odometry message; returns the tick it completes, if any."""
+    def add(self, robot: int, stamp: int, x: float, y: float, vx: float, vy: float,
+            qz: float = 0.0, qw: float = 1.0) -> Tick | None:
+        """Records one odometry message (position, twist, orientation about z); returns the
+        tick it completes, if any."""
         with self._lock:
             previous = self.latest.get(robot)
             if previous is not None and stamp < previous[0]:
@@ -245,13 +252,13 @@ class TickAssembler:
             if epoch > self._epoch:
                 self._epoch, self._last = epoch, None
                 self._pending.clear()
-            self.latest[robot] = (stamp, x, y, vx, vy)
+            self.latest[robot] = (stamp, x, y, vx, vy, qz, qw)
             if epoch < self._epoch:
                 return None  # from the source before its restart
             if self._last is not None and stamp <= self._last:
                 return None  # a tick already returned, or one passed over
             entry = self._pending.setdefault(stamp, {})
-            entry[robot] = (x, y, vx, vy)
+            entry[robot] = (x, y, vx, vy, qz, qw)
             if len(entry) < self.robots:
                 return None
             del self._pending[stamp]
@@ -259,7 +266,7 @@ class TickAssembler:
             self._pending = {k: v for k, v in self._pending.items() if k > stamp}
             self._last = stamp
             rows = np.array([entry[k] for k in range(self.robots)], dtype=np.float64)
-            return Tick(stamp, rows[:, :2], rows[:, 2:])
+            return Tick(stamp, rows[:, :2], rows[:, 2:4], rows[:, 4:6])
 
     def snapshot(self) -> Tick | None:
         """Every robot's latest odometry as one tick (stamped with the newest stamp), or None
@@ -270,7 +277,7 @@ class TickAssembler:
                 return None
             rows = np.array([self.latest[k][1:] for k in range(self.robots)], dtype=np.float64)
             stamp = max(self.latest[k][0] for k in range(self.robots))
-            return Tick(stamp, rows[:, :2], rows[:, 2:])
+            return Tick(stamp, rows[:, :2], rows[:, 2:4], rows[:, 4:6])
 
 
 def is_continuation(previous_ns: int | None, stamp_ns: int, dt: float) -> bool:

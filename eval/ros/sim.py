@@ -46,6 +46,7 @@ from boids_env.eval.ros.protocol import (
 from boids_env.eval.run import metrics_table
 from boids_env.files import atomic_path, write_json
 from boids_env.recording import Recorder, Recording
+from boids_env.world.robots import quaternion_headings, to_body
 
 WARN_EVERY = 5.0
 """Seconds between the warnings of a lockstep simulator waiting for commands."""
@@ -127,7 +128,7 @@ class SimNode:
     def __init__(self, options: SimOptions, argv: Sequence[str] | None = None) -> None:
         self.options = options
         self.env = BoidsEnv(**dict(options.env_fields))
-        config = self.env.config
+        config = self.config = self.env.config
         sc = config.scenario
         if (sc.leader == "person" and sc.path != "external") or sc.crowd:
             # the sim publishes the leader's next command ahead of stepping, which a
@@ -139,6 +140,18 @@ class SimNode:
         self.dt = config.world.dt
         self.agents = list(self.env.possible_agents)
         self.external = config.scenario.path == "external"
+        self.heading = config.world.drive == "unicycle"
+        if self.heading:
+            # cmd_vel carries (v, ω) in the robot's frame: the world takes it as it is
+            if self.external:
+                raise ValueError("boids ros sim drives a robot with a heading from body-frame "
+                                 "cmd_vel; an external leader of such a robot is not supported "
+                                 "yet: give a scripted --path")
+            if config.realism.active:
+                raise ValueError("boids ros sim with a robot that has a heading applies cmd_vel "
+                                 "(v, ω) as it comes; realism acts on world-frame velocities: "
+                                 "leave --realism out")
+            self.env = BoidsEnv(config, action="unicycle")
         self.msgs = Messages()
         rospy = self.rospy = self.msgs.rospy
         from geometry_msgs.msg import Twist
@@ -181,7 +194,8 @@ class SimNode:
 
     # ------------------------------------------------------------------------ callbacks
     def _on_command(self, msg: Any, index: int) -> None:
-        if not self.board.post(index, msg.linear.x, msg.linear.y, time.monotonic()):
+        second = msg.angular.z if self.heading else msg.linear.y
+        if not self.board.post(index, msg.linear.x, second, time.monotonic()):
             self.rospy.logwarn_throttle(5.0, f"{self.name}: dropped a non-finite command for "
                                         f"{self.agents[index]}")
 
@@ -282,15 +296,28 @@ class SimNode:
         snap = self.env.snapshot()
         stamp = self.msgs.time(stamp_ns(start, tick, self.dt))
         self.clock_pub.publish(self.msgs.Clock(clock=stamp))
+        velocities, quaternions = snap.velocities, snap.quaternions
+        turn = np.zeros(self.robots) if snap.angular_velocities is None \
+            else snap.angular_velocities
+        if quaternions is not None:  # REP 105: the twist in the robot's own frame
+            velocities = to_body(velocities, quaternion_headings(quaternions[:, 0],
+                                                                 quaternions[:, 1]))
         for k, pub in enumerate(self.odom_pubs):
-            pub.publish(self.msgs.odometry(k, stamp, snap.positions[k], snap.velocities[k]))
-        self.tf_pub.publish(self.msgs.transforms(stamp, snap.positions))
+            pub.publish(self.msgs.odometry(k, stamp, snap.positions[k], velocities[k],
+                                           None if quaternions is None else quaternions[k],
+                                           turn[k]))
+        self.tf_pub.publish(self.msgs.transforms(stamp, snap.positions, quaternions))
         if self.leader_pub is not None:
             # The command the scripted leader will execute next, computed on a copy (the
             # env computes the same one, from the same state, when it steps): published with
             # the odometry, as the study's leader controller answered its own odometry.
             vx, vy = copy.deepcopy(self.env.leader).command(tick * self.dt, snap.positions[0])
-            self.leader_pub.publish(self.msgs.twist(vx, vy))
+            if quaternions is None:
+                self.leader_pub.publish(self.msgs.twist(vx, vy))
+            else:  # as the leader's driver takes it: (v, ω) in its own frame
+                h = quaternion_headings(quaternions[:1, 0], quaternions[:1, 1])
+                v, w = self.env.robot_model.native(np.array([[vx, vy]]), h)[0]
+                self.leader_pub.publish(self.msgs.twist(v, 0.0, w))
 
     # -------------------------------------------------------------------------- episode
     def _lockstep_commands(self, tick: int) -> np.ndarray | None:
@@ -360,6 +387,8 @@ class SimNode:
                      rejected_commands=self.board.rejected - rejected0,
                      controllers=self._controllers())
         recording = recorder.recording(self.env, seed=seed)
+        # the graph's config (a robot with a heading steps with its cmd_vel's (v, ω) inside)
+        recording.config = self.config
         recording.extra.update(source="boids ros sim", controllers=stats["controllers"],
                                mode="lockstep" if opts.lockstep else "real time")
         return SimEpisode(info, recording, recording.metrics(), wall, stats)
@@ -400,7 +429,7 @@ def run_sim(options: SimOptions, argv: Sequence[str] | None = None) -> list[SimE
     """Runs ``boids ros sim``: the episodes, each one's metrics table printed and, with
     ``options.out``, its files written."""
     node = SimNode(options, argv)
-    cfg = node.env.config
+    cfg = node.config
     episodes = []
     try:
         for index in range(options.episodes):

@@ -175,7 +175,8 @@ def _recipes():
 
 def test_the_recipes_are_the_documented_ones():
     assert _recipes() == ["ppo_person", "ppo_safe", "ppo_safe_stage2", "ppo_scenes",
-                          "ppo_scenes_stage2", "ppo_scenes_stage3", "ppo_study"]
+                          "ppo_scenes_stage2", "ppo_scenes_stage3", "ppo_study",
+                          "ppo_turtlebot", "ppo_turtlebot_stage2"]
 
 
 @pytest.mark.parametrize("name", _recipes())
@@ -187,7 +188,8 @@ def test_every_shipped_recipe_builds_its_env(name):
     env = BoidsEnv(robots=max(config.group_sizes), **config.env_fields)
     env.reset(seed=0)
     relative = config.env_fields.get("relative_actions", False)
-    assert env.action_space("follower_1").high[0] == pytest.approx(1.0 if relative else 0.5)
+    top = env.config.world.max_speed  # the robot's (the TurtleBot3's 0.22 m/s)
+    assert env.action_space("follower_1").high[0] == pytest.approx(2 * top if relative else top)
     assert relative == (name != "ppo_study")
 
 

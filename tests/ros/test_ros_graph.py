@@ -100,6 +100,60 @@ def test_rosbag_record_of_a_lockstep_run_gives_the_sims_metrics(ros):
         plain["V_align"], sim_metrics["V_align"])
 
 
+def test_a_turtlebot3_graph_speaks_body_frame_and_equals_boids_run_exactly(ros):
+    """A robot with a heading on the graph as a TurtleBot3 speaks: body-frame cmd_vel
+    (linear.x, angular.z) from the controller, oriented odometry with the twist in the
+    robot's frame (REP 105); the lockstep run equals boids run bit for bit."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    out, _ = _run_lockstep(ros, "--robot", "turtlebot3_burger", "--max-cycles", "150",
+                           "--robots", "7", recorder=True)
+    reference = _in_process(robot="turtlebot3_burger", max_cycles=150, robots=7)
+    ours = Recording.from_parquet(out / "trajectory.parquet")
+    _assert_same_recording(ours, reference.recording, "turtlebot graph vs boids run")
+    for name in ("headings", "angular_velocities", "native"):
+        assert np.array_equal(getattr(ours, name), getattr(reference.recording, name)), name
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert json.dumps(metrics, sort_keys=True) == json.dumps(reference.metrics, sort_keys=True)
+    assert json.loads((out / "config.json").read_text())["env"]["world"]["robot"] == \
+        "turtlebot3_burger"
+    cmd, odom = {}, {}
+    with AnyReader([ros.folder / "run.bag"],
+                   default_typestore=get_typestore(Stores.ROS1_NOETIC)) as reader:
+        for conn, _, raw in reader.messages():
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic.endswith("/cmd_vel"):
+                cmd.setdefault(conn.topic, []).append((msg.linear.x, msg.linear.y,
+                                                       msg.angular.z))
+            elif conn.topic.endswith("/odom"):
+                odom.setdefault(conn.topic, []).append(
+                    (msg.twist.twist.linear.y, msg.twist.twist.angular.z,
+                     msg.pose.pose.orientation.z, msg.pose.pose.orientation.w))
+    assert len(cmd) == 7 and len(odom) == 7
+    commands = np.array([c for k in range(1, 7) for c in cmd[f"/robot_{k}/cmd_vel"]])
+    assert np.all(commands[:, 1] == 0.0), "body-frame cmd_vel: linear.y is zero"
+    assert np.abs(commands[:, 2]).max() > 0.5, "body-frame cmd_vel: angular.z turns"
+    assert np.all(commands[:, 0] >= 0.0) and commands[:, 0].max() <= 0.22
+    # the k-th command answers the k-th odometry: it is the next sample's (v, ω)
+    np.testing.assert_array_equal(commands.reshape(6, -1, 3)[:, :150, [0, 2]],
+                                  ours.native[1:, 1:].transpose(1, 0, 2))
+    twists = np.array([o for k in range(7) for o in odom[f"/robot_{k}/odom"]])
+    assert np.abs(twists[:, 0]).max() < 0.01, "the twist is in the robot's frame"
+    assert np.abs(twists[:, 1]).max() > 0.5 and np.abs(twists[:, 2]).max() > 0.5
+    # boids ros metrics of the bag: the sim's numbers
+    from boids_env.config import EnvConfig
+    from boids_env.eval.ros.bags import read_live_bag
+
+    config = EnvConfig.from_dict(json.loads((out / "config.json").read_text())["env"])
+    live = read_live_bag(ros.folder / "run.bag", config)
+    assert np.array_equal(live.positions, ours.positions)
+    assert np.array_equal(live.native, ours.native)
+    from_bag = live.metrics()
+    for key in ("V_sep", "V_coh", "V_align", "V_align_heading", "touching_fraction"):
+        assert from_bag[key] == metrics[key], (key, from_bag[key], metrics[key])
+
+
 @pytest.mark.parametrize("policy", ["learned", "boids_env.policies.random_policy:RandomPolicy"])
 def test_any_policy_runs_as_the_controller_node(ros, policy):
     out, _ = _run_lockstep(ros, "--max-cycles", "120", "--robots", "7", "--seed", "3",

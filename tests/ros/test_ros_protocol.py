@@ -177,3 +177,22 @@ def test_reconfigure_assignments_are_parsed_with_clear_errors():
         reconfigure.parse_assignments(["mass=1"])
     with pytest.raises(ValueError, match="leader_weight must be a number"):
         reconfigure.parse_assignments(["leader_weight=heavy"])
+
+
+def test_ticks_carry_the_orientation_of_robots_with_a_heading():
+    assembler = TickAssembler(2)
+    assert assembler.add(0, 100, 1.0, 2.0, 0.2, 0.0, 0.6, 0.8) is None
+    tick = assembler.add(1, 100, 3.0, 4.0, 0.1, 0.0)
+    assert tick.quaternions.tolist() == [[0.6, 0.8], [0.0, 1.0]]
+    assert tick.velocities.tolist() == [[0.2, 0.0], [0.1, 0.0]]
+
+
+@pytest.mark.parametrize(("fields", "message"), [
+    ({"robot": "turtlebot3_burger", "path": "external"}, "external leader"),
+    ({"robot": "gritsbot", "realism": "ros"}, "leave --realism out"),
+])
+def test_the_sim_refuses_what_body_frame_commands_cannot_carry(fields, message):
+    from boids_env.eval.ros.sim import SimNode, SimOptions
+
+    with pytest.raises(ValueError, match=message):
+        SimNode(SimOptions(env_fields=fields))  # before any ROS call
