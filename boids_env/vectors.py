@@ -3,6 +3,7 @@ round the same on every CPU (pure numpy)."""
 
 from __future__ import annotations
 
+import math
 import numbers
 from typing import Any
 
@@ -42,6 +43,39 @@ def times_matrix(v: npt.ArrayLike, matrix: npt.ArrayLike) -> FloatArray:
     v = np.asarray(v, dtype=np.float64)
     m = np.asarray(matrix, dtype=np.float64)
     return v[..., 0:1] * m[0] + v[..., 1:2] * m[1]
+
+
+_PIO2_HI = 1.57079632673412561417e00
+"""The first 33 bits of π/2: ``n · _PIO2_HI`` is exact for the quadrant counts used here."""
+_PIO2_LO = 6.07710050650619224932e-11
+"""π/2 − ``_PIO2_HI``."""
+_SIN = [(-1.0) ** k / math.factorial(2 * k + 1) for k in range(1, 10)]
+_COS = [(-1.0) ** k / math.factorial(2 * k) for k in range(1, 11)]
+
+
+def sin_cos(phi: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """(sin φ, cos φ) of angles |φ| < 1e6 rad with additions, multiplications and one
+    rounding to an integer only: the same bits on every CPU and C library. numpy's SIMD sin
+    and cos and the C library's (``math.sin``) differ in the last bit between machines, and
+    a flock's dynamics amplify that. Within 2 ulp of the exact values: the quadrant is taken
+    off with π/2 in two parts (Cody and Waite), then Taylor polynomials to degree 19 and 20
+    on |r| ≤ π/4 (truncation below 1e-21)."""
+    phi = np.asarray(phi, dtype=np.float64)
+    n = np.rint(phi * (2.0 / math.pi))
+    r = (phi - n * _PIO2_HI) - n * _PIO2_LO
+    r2 = r * r
+    s = np.full_like(r, _SIN[-1])
+    for coefficient in reversed(_SIN[:-1]):
+        s = s * r2 + coefficient
+    s = r + r * r2 * s
+    c = np.full_like(r, _COS[-1])
+    for coefficient in reversed(_COS[:-1]):
+        c = c * r2 + coefficient
+    c = 1.0 + r2 * c
+    quadrant = np.mod(n, 4.0)
+    sin = np.select([quadrant == 0, quadrant == 1, quadrant == 2], [s, c, -s], -c)
+    cos = np.select([quadrant == 0, quadrant == 1, quadrant == 2], [c, -s, -c], s)
+    return sin, cos
 
 
 def as_velocities(value: Any, name: str, shape: tuple[int, ...]) -> FloatArray:

@@ -54,7 +54,7 @@ OBSTACLE = "obstacle"
 
 def clip_norm(x: FloatArray, limit: float) -> FloatArray:
     """Scales rows of ``x`` (..., 2) whose norm exceeds ``limit`` down to ``limit``."""
-    norm = np.hypot(x[..., 0], x[..., 1])
+    norm = np.sqrt(x[..., 0] * x[..., 0] + x[..., 1] * x[..., 1])
     # min(1, limit / norm) is exactly 1 where the norm is within the limit (or zero)
     scale = np.minimum(1.0, limit / np.maximum(norm, 1e-300))
     return x * scale[..., None]
@@ -84,7 +84,7 @@ def reynolds_forces(rel: FloatArray, vel: FloatArray, valid: npt.NDArray[np.bool
 
     close = near & (dist < p.desired_separation)
     n_close = close.sum(axis=1)[:, None]
-    inv_cube = np.divide(1.0, dist**3, out=np.zeros_like(dist), where=close)
+    inv_cube = np.divide(1.0, dist * dist * dist, out=np.zeros_like(dist), where=close)
     push = -np.einsum("fk,fkd->fd", inv_cube, rel) / np.maximum(n_close, 1)
     separation = clip_norm(push, 2 * p.max_force)
 
@@ -175,7 +175,7 @@ def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
     if OBSTACLE in forces:
         weighted[OBSTACLE] = p.obstacle_weight * forces[OBSTACLE]
         first = clip_norm(weighted[OBSTACLE], p.max_force)
-        left = p.max_force - np.hypot(first[:, 0], first[:, 1])
+        left = p.max_force - np.sqrt(first[:, 0] * first[:, 0] + first[:, 1] * first[:, 1])
         rest = clip_norm_each(sum(weighted[name] for name in RULES), left)
         pushed = np.any(first != 0.0, axis=1)[:, None]
         total = np.where(pushed, first + rest, total)  # untouched rows: the study's sum
@@ -185,7 +185,7 @@ def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
 
 def clip_norm_each(x: FloatArray, limits: FloatArray) -> FloatArray:
     """Rows of ``x`` (F, 2) scaled down to their own ``limits`` (F,) where longer."""
-    norm = np.hypot(x[..., 0], x[..., 1])
+    norm = np.sqrt(x[..., 0] * x[..., 0] + x[..., 1] * x[..., 1])
     scale = np.minimum(1.0, limits / np.maximum(norm, 1e-300))
     return x * scale[..., None]
 

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.vectors import as_velocities, clip_speed, times_matrix
+from boids_env.vectors import as_velocities, clip_speed, sin_cos, times_matrix
 from boids_env.world.scenario import CURVE_SPEED_FACTOR, LEADER_MAX_SPEED, scene_matrix
 
 if TYPE_CHECKING:
@@ -206,7 +206,8 @@ class CurveLeader(Leader):
             return np.zeros(2)
         ahead = self._point(s + 0.05)
         here = self._point(s)
-        tangent = (ahead - here) / max(np.linalg.norm(ahead - here), 1e-12)
+        step = ahead - here  # its length elementwise: a 1-D norm is a BLAS dot (per-CPU bits)
+        tangent = step / max(math.sqrt(step[0] * step[0] + step[1] * step[1]), 1e-12)
         out = self.speed * tangent + self.gain * (here - position)
         return clip_speed(out, CURVE_SPEED_FACTOR * self.speed)
 
@@ -270,13 +271,14 @@ def make_leader(scenario: ScenarioConfig, rng: np.random.Generator, dt: float | 
         radius = size / 2
 
         def circle(phi: Vec) -> Vec:  # through the origin, heading +y, centre (-r, 0)
-            return np.stack([radius * (np.cos(phi) - 1), radius * np.sin(phi)], axis=1)
+            sin, cos = sin_cos(phi)
+            return np.stack([radius * (cos - 1), radius * sin], axis=1)
 
         return CurveLeader(circle, speed, start, scenario.laps, turn, origin, pauses)
     if scenario.path == "figure_eight":
 
         def eight(phi: Vec) -> Vec:  # through the origin, lobes above and below it
-            return np.stack([-size / 2 * np.sin(2 * phi), size * np.sin(phi)], axis=1)
+            return np.stack([-size / 2 * sin_cos(2 * phi)[0], size * sin_cos(phi)[0]], axis=1)
 
         return CurveLeader(eight, speed, start, scenario.laps, turn, origin, pauses)
     return ExternalLeader(speed, start)

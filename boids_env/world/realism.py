@@ -170,8 +170,9 @@ class Realism:
         tree = cKDTree(positions)
         for i, near in enumerate(tree.query_ball_point(nxt, reach)):
             for j in near:
-                if j != i and (np.linalg.norm(nxt[i] - positions[j])
-                               < np.linalg.norm(positions[i] - positions[j])):
+                # squared distances, elementwise (a 1-D norm is a BLAS dot: per-CPU bits)
+                ahead_sq = float(np.sum((nxt[i] - positions[j]) ** 2))
+                if j != i and ahead_sq < float(np.sum((positions[i] - positions[j]) ** 2)):
                     stalled[i] = True
                     break
         return stalled

@@ -184,3 +184,23 @@ def test_times_matrix_is_the_matrix_product_rounded_as_two_products_and_a_sum():
     x, y = v[..., 0], v[..., 1]
     assert np.array_equal(out[..., 0], np.add(np.multiply(x, m[0, 0]), np.multiply(y, m[1, 0])))
     assert np.array_equal(times_matrix([1.0, 2.0], m), times_matrix([[1.0, 2.0]], m)[0])
+
+
+def test_sin_cos_is_within_two_ulp_of_the_c_library_and_keeps_the_symmetries():
+    from boids_env.vectors import sin_cos
+
+    phi = np.concatenate([np.linspace(-40.0, 40.0, 20001), [0.0, 1e-300, -2.5e-8]])
+    sin, cos = sin_cos(phi)
+    want_sin = np.array([math.sin(p) for p in phi.tolist()])
+    want_cos = np.array([math.cos(p) for p in phi.tolist()])
+    # absolute error within 2 ulp of 1 (the values are at most 1 in size)
+    assert np.abs(sin - want_sin).max() <= 2 * np.spacing(1.0)
+    assert np.abs(cos - want_cos).max() <= 2 * np.spacing(1.0)
+    # relative accuracy near zero, where an absolute bound says little
+    small = np.abs(phi) < 1e-3
+    np.testing.assert_allclose(sin[small], want_sin[small], rtol=3e-16, atol=0)
+    assert sin[phi == 0.0][0] == 0.0 and cos[phi == 0.0][0] == 1.0
+    # odd and even, bit for bit
+    minus_sin, minus_cos = sin_cos(-phi)
+    assert np.array_equal(minus_sin, -sin) and np.array_equal(minus_cos, cos)
+    assert np.all(sin * sin + cos * cos <= 1.0 + 4 * np.spacing(1.0))

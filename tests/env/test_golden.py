@@ -2,6 +2,11 @@
 from the code before scenes, robot models and people were added (commit e649aa0). Two
 trajectories were re-pinned once, when 2×2 rotations became elementwise products so that they
 round the same on every CPU (a turned circle and the leader frame: their metrics unchanged).
+Two again when the Reynolds forces stopped taking ``pow`` and ``hypot`` (the slow leader with
+weight 1.2: its pinned bits came from an AVX-512 machine's SIMD ``pow``; an AVX2 machine gave
+others) and the curves stopped taking numpy's ``sin``/``cos`` (the circle): the last digit of
+the mean leader distance moved in each, nothing else. Both are now the same bits on AVX2 and
+AVX-512 machines (checked on both).
 
 Every case is the ideal arena (or an opt-in of that era); the SHA-256 covers every position
 and command of the episode, so any change to the physics, the leader, the observations, the

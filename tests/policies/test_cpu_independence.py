@@ -25,7 +25,10 @@ out = {}
 for spec, fields in (("learned", {}), ("learned", {"robots": 25, "obs_noise": 0.02,
                                                     "max_cycles": 300}),
                      ("learned", {"scene": "pillars", "max_cycles": 300}),
-                     ("reynolds", {"scene": "lab", "lidar_rays": 16, "max_cycles": 300})):
+                     ("reynolds", {"scene": "lab", "lidar_rays": 16, "max_cycles": 300}),
+                     # the study's slow leader: a crowded flock whose separation forces (a
+                     # cube, norms) once took pow and hypot, which round per CPU
+                     ("reynolds", {"leader_speed": 0.5})):
     policy = load_policy(spec)
     env = BoidsEnv(**env_fields_for(policy, fields))
     result = run_episode(env, policy, 3, record=True)
@@ -43,6 +46,16 @@ def dispatch_targets():
     return [t for t in __cpu_dispatch__ if __cpu_features__.get(t)]
 
 
+def avx512() -> bool:
+    """Whether this CPU runs AVX-512 code (OpenBLAS's SkylakeX kernel dies of SIGILL
+    without it)."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            return "avx512f" in f.read().split()
+    except OSError:
+        return False
+
+
 def run(coretype, disabled):
     env = {**os.environ, "OPENBLAS_CORETYPE": coretype, "OPENBLAS_VERBOSE": "2",
            "NPY_DISABLE_CPU_FEATURES": " ".join(disabled)}
@@ -55,8 +68,10 @@ def run(coretype, disabled):
 
 def test_learned_episodes_are_bit_identical_on_every_blas_kernel_and_simd_level():
     targets = dispatch_targets()
-    settings = [("Haswell", []), ("Prescott", []), ("SkylakeX", []),
-                ("Haswell", targets[1:]), ("SkylakeX", targets)]
+    settings = [("Haswell", []), ("Prescott", []), ("Haswell", targets[1:]),
+                ("Prescott", targets)]
+    if avx512():
+        settings += [("SkylakeX", []), ("SkylakeX", targets)]
     runs = {setting_name(*s): run(*s) for s in settings}
     (first_name, (first, _)), *others = runs.items()
     for name, (result, _) in others:
