@@ -152,6 +152,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         obs_cfg = self.config.observation
         n = self.config.scenario.robots
         self.possible_agents: list[AgentID] = [f"follower_{i}" for i in range(1, n)]
+        # every follower lives until the episode ends (no agent leaves early): a step's
+        # actions must name exactly these
+        self._live = frozenset(self.possible_agents)
         self.agents: list[AgentID] = []
         self._observer = Observer(self.config)
         self.layout = self._observer.layout
@@ -373,7 +376,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             commands = filter_commands(commands, world.positions, world.velocities, full[0],
                                        cfg.world.robot_radius, cfg.world.max_speed,
                                        self._scene, cfg.safety)
-        self._still_steps = 0 if full[0].any() else self._still_steps + 1
+        lead = full[0]
+        self._still_steps = 0 if lead[0] != 0.0 or lead[1] != 0.0 else self._still_steps + 1
         if native:
             full[0] = world.model.native(full[:1], world.heading_vectors[:1])[0]
             full[1:] = commands
@@ -391,13 +395,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         cfg = self.episode_config
         flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded,
                                   world.headings)
-        stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])  # (3, F)
+        followers = len(world.positions) - 1
+        stacked = np.empty((3, followers), dtype=bool)
+        for row, name in enumerate(metrics.VIOLATIONS):
+            stacked[row] = flags[name]
         self._counts += stacked
-        terms = np.vstack([self._reward_scale * stacked,  # metrics.reward_terms as one array
-                           self._safety_terms(world.positions),
-                           self._gap_term(world.positions),
-                           self._intrusion_term(world),
-                           self._parked_term(world.velocities)])  # (9, F)
+        terms = self._terms(world, stacked)
         if self._finish_step is None and leader.finished:
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
@@ -408,6 +411,22 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if self.render_mode == "human":
             self.render()
         return result
+
+    def _terms(self, world: World, stacked: npt.NDArray[np.bool_]) -> npt.NDArray[np.float64]:
+        """The step's reward terms (9, F) in ``REWARD_INFO_KEYS`` order: the study's three
+        (−weight · flag · dt, as ``metrics.reward_terms``), then the opt-in ones, which stay
+        zero rows unless their weight is set (nothing is computed for them then)."""
+        terms = np.zeros((len(REWARD_INFO_KEYS), stacked.shape[1]))
+        np.multiply(self._reward_scale, stacked, out=terms[:3])
+        if self._safety_scale.any():
+            terms[3:6] = self._safety_terms(world.positions)
+        if self._gap_scale:
+            terms[6:7] = self._gap_term(world.positions)
+        if self._intrusion_scale:
+            terms[7:8] = self._intrusion_term(world)
+        if self._parked_scale:
+            terms[8:9] = self._parked_term(world.velocities)
+        return terms
 
     def _safety_terms(self, positions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """The safety reward terms (3, F): −weight · flag · dt, zeros when no weight is set."""
@@ -449,16 +468,20 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
 
     def _parse_actions(self, actions: Mapping[AgentID, npt.ArrayLike]
                        ) -> npt.NDArray[np.float64]:
-        if not isinstance(actions, Mapping):
+        if type(actions) is not dict and not isinstance(actions, Mapping):  # ABC check: slow
             raise TypeError(f"actions must be a dict of agent -> (vx, vy), got "
                             f"{type(actions).__name__}")
-        if len(actions) != len(self.agents) or not all(a in actions for a in self.agents):
+        agents = self.agents
+        if len(actions) != len(agents) or (
+                actions.keys() != self._live if type(actions) is dict  # one set comparison
+                else not all(a in actions for a in agents)):
             unknown = sorted(str(a) for a in actions if a not in self.agents)
             missing = [a for a in self.agents if a not in actions]
             raise KeyError(f"actions must hold exactly the live agents; unknown: {unknown}, "
                            f"missing: {missing}")
-        values = [actions[a] for a in self.agents]
-        if all(type(v) is np.ndarray and v.shape == (2,) and v.dtype.kind in "iuf"
+        values = [actions[a] for a in agents]
+        ndarray, pair = np.ndarray, (2,)
+        if all(type(v) is ndarray and v.shape == pair and v.dtype.kind in "iuf"
                for v in values):  # the common case: what policies return
             arr = np.array(values, dtype=np.float64)
             if not np.isfinite(arr).all():

@@ -72,8 +72,13 @@ def violation_flags(positions: FloatArray, commanded: FloatArray, *,
     Returns:
         ``{"separation", "cohesion", "alignment"}`` -> bool arrays (..., N-1).
     """
-    offset = positions[..., 1:, :] - positions[..., :1, :]
-    distance = np.sqrt(np.einsum("...d,...d->...", offset, offset))
+    # x and y apart (a trailing axis of 2 makes numpy's inner loops short); the squares are
+    # summed in einsum's order, so the distances are the same bits
+    ox = positions[..., 1:, 0] - positions[..., :1, 0]
+    oy = positions[..., 1:, 1] - positions[..., :1, 1]
+    distance = ox * ox
+    distance += oy * oy
+    np.sqrt(distance, out=distance)
     heading = heading_deg(commanded)
     turn = angle_difference_deg(heading[..., :1], heading[..., 1:], wrap=wrap_alignment)
     return {

@@ -18,20 +18,24 @@ def clip_speed(v: FloatArray, limit: float) -> FloatArray:
     unchanged). Huge finite components, whose plain norm overflows to inf, keep their
     direction too: ``(1e155, 0)`` becomes ``(limit, 0)``, not ``(0, 0)``."""
     v = np.asarray(v, dtype=np.float64)
-    speed = np.sqrt(np.einsum("...d,...d->...", v, v))
-    over = speed > limit
-    if not over.any():
+    speed = np.sqrt(np.einsum("...d,...d->...", v, v))  # no overflow warning for huge rows
+    if not (speed > limit).any():
         return v
+    if np.isfinite(speed).all():
+        # limit / speed below 1 on the rows over the limit (the scaling), min(1, ...) exactly
+        # 1 on the others (and on a zero row: limit / tiny is huge)
+        scale = np.minimum(1.0, limit / np.maximum(speed, 1e-300))
+        return v * scale[..., None]
     out = v.copy()
+    over = speed > limit
     finite = np.isfinite(speed)
     normal = over & finite
     out[normal] *= (limit / speed[normal])[..., None]
     huge = over & ~finite
-    if huge.any():
-        rows = v[huge]
-        big = np.max(np.abs(rows), axis=-1, keepdims=True)
-        unit = rows / big  # components in [-1, 1]: no overflow
-        out[huge] = unit / np.hypot(unit[..., 0], unit[..., 1])[..., None] * limit
+    rows = v[huge]
+    big = np.max(np.abs(rows), axis=-1, keepdims=True)
+    unit = rows / big  # components in [-1, 1]: no overflow
+    out[huge] = unit / np.hypot(unit[..., 0], unit[..., 1])[..., None] * limit
     return out
 
 
