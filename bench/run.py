@@ -51,14 +51,17 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
     sensing)."""
     if "scene" not in fields:
         fields["arena_half_size"] = arena_for(robots)
-    env = parallel_env(robots=robots, path="external", max_cycles=10**9, **fields)
+    fields.setdefault("path", "external")  # a person walks its own path (JuPedSim)
+    env = parallel_env(robots=robots, max_cycles=10**9, **fields)
     rng = np.random.default_rng(0)
     reynolds = ReynoldsPolicy(startup_time=0.0)
     limit = env.config.world.max_speed
+    external = env.config.scenario.path == "external"
 
     def run_dict() -> int:
         obs, _ = env.reset(seed=0)
-        env.set_leader_command([0.3, 0.0])
+        if external:
+            env.set_leader_command([0.3, 0.0])
         reynolds.bind(env)
         reynolds.reset(0)
         for _ in range(steps):
@@ -72,7 +75,8 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
 
     def run_arrays() -> int:
         obs = env.reset_arrays(seed=0)
-        env.set_leader_command([0.3, 0.0])
+        if external:
+            env.set_leader_command([0.3, 0.0])
         reynolds.bind(env)
         reynolds.reset(0)
         for _ in range(steps):
@@ -127,21 +131,28 @@ def _env_rows(sizes: list[int], repeats: int, record: Callable[..., None]) -> No
 
 
 SCENE_ROWS = (("env reynolds lab", "reynolds", {"scene": "lab"}),
-              ("env random lidar16", "random", {"lidar_rays": 16}))
-"""The world beyond the study at 19 robots: the ``lab`` map scene (a 240 × 200 cell map) with
-the Reynolds policy avoiding its walls, and a 16-ray lidar, each against the default."""
+              ("env random lidar16", "random", {"lidar_rays": 16}),
+              ("env random turtlebot3", "random", {"robot": "turtlebot3_burger"}),
+              ("env random person crowd8", "random", {"leader": "person", "crowd": 8,
+                                                      "path": "square"}))
+"""The world beyond the study at 19 robots, each against the default with the same policy:
+the ``lab`` map scene (a 240 × 200 cell map) with the Reynolds policy avoiding its walls, a
+16-ray lidar, a TurtleBot3 flock (unicycles turned every physics substep), and a person
+walked by JuPedSim through the square's corners with 8 pedestrians (the person suite's
+crowd)."""
+BASE_ROWS = {"reynolds": "env reynolds", "random": "env random"}
 
 
 def _scene_rows(repeats: int, record: Callable[..., None]) -> None:
     for kind, policy, fields in SCENE_ROWS:
-        record(kind, 19, 18, timed(env_loop(19, 400, policy, **fields), repeats))
+        record(kind, 19, 18, timed(env_loop(19, 300, policy, **fields), repeats))
 
 
 def _ratios(rows: list[dict[str, Any]]) -> dict[str, float]:
     by_kind = {(r["kind"], r["robots"]): r["env_steps_per_s"]["median"] for r in rows}
     ratios = {}
-    pairs = {"lab_19_over_arena_19": ("env reynolds lab", "env reynolds"),
-             "lidar16_19_over_none_19": ("env random lidar16", "env random")}
+    pairs = {f"{kind.split()[-1] if 'crowd' not in kind else 'person_crowd8'}_over_default_19":
+             (kind, BASE_ROWS[policy]) for kind, policy, _ in SCENE_ROWS}
     for name, (new, base) in pairs.items():
         if (new, 19) in by_kind and (base, 19) in by_kind:
             ratios[name] = by_kind[(new, 19)] / by_kind[(base, 19)]
@@ -149,8 +160,13 @@ def _ratios(rows: list[dict[str, Any]]) -> dict[str, float]:
         ratios["env_random_19_over_mpe2_18"] = (by_kind[("env random", 19)]
                                                 / by_kind[("mpe2 simple_spread", 18)])
     if ("env random", 19) in by_kind:
-        ratios["env_random_19_over_physics_19"] = (by_kind[("env random", 19)]
-                                                   / by_kind[("physics", 19)])
+        for kind, name in (("env random", "dict"), ("env random arrays", "arrays")):
+            ratios[f"env_random_{name}_19_over_physics_19"] = (by_kind[(kind, 19)]
+                                                               / by_kind[("physics", 19)])
+    if ("env reynolds", 1000) in by_kind:
+        for kind, name in (("env reynolds", "dict"), ("env reynolds arrays", "arrays")):
+            ratios[f"env_reynolds_{name}_1000_over_physics_1000"] = (
+                by_kind[(kind, 1000)] / by_kind[("physics", 1000)])
     return ratios
 
 

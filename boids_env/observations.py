@@ -493,11 +493,12 @@ def _pedestrian_block(points: FloatArray, slots: int, sensors: Sensors, velocity
         rel = crowd.positions[None, :, :] - points[:, None, :]  # (F, P, 2)
         dist = np.sqrt(rel[..., 0] * rel[..., 0] + rel[..., 1] * rel[..., 1])
         dist = np.where(dist <= sensors.pedestrian_range, dist, np.inf)
-        order = np.argsort(dist, axis=1, kind="stable")[:, :slots]
-        near = np.take_along_axis(dist, order, axis=1)
+        order = dist.argsort(axis=1, kind="stable")[:, :slots]
+        rows = np.arange(len(points))[:, None]
+        near = dist[rows, order]
         valid = np.isfinite(near)
         k = order.shape[1]
-        picked = np.take_along_axis(rel, order[..., None], axis=1)
+        picked = rel[rows, order]
         vel = np.clip(crowd.velocities[order], -velocity_bound, velocity_bound)
         block[:, :k, 0:2] = _in_frame(picked, frame) * valid[..., None]
         block[:, :k, 2:4] = _in_frame(vel, frame) * valid[..., None]

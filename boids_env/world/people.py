@@ -249,8 +249,10 @@ class People:
         for _ in range(self._iterations):
             self._sim.iterate()
         self.steps += 1
-        self.positions = self._read()
-        self._retarget_crowd()
+        agents = [self._sim.agent(i) for i in self._ids]  # looked up once for both uses
+        self.positions = np.array([agent.position for agent in agents],
+                                  dtype=float).reshape(-1, 2)
+        self._retarget_crowd(agents)
         return self.positions
 
     def _steer_person(self, t: float, a: dict[str, Any]) -> None:
@@ -277,16 +279,18 @@ class People:
                    and not self.finished)
         person.model.desired_speed = a["speed"] * self._gait if walking else 0.0
 
-    def _retarget_crowd(self) -> None:
+    def _retarget_crowd(self, agents: list[Any]) -> None:
         """Pedestrians that reached their goal get a new random one; those stuck for
-        :data:`STUCK_TIME` give way (a new goal near them)."""
+        :data:`STUCK_TIME` give way (a new goal near them). ``agents``: JuPedSim's agents in
+        ``_ids`` order."""
         first = 1 if self.has_person else 0
         self._past.append(self.positions)
         before = self._past.pop(0) if len(self._past) > self._stuck_steps else None
+        positions = self.positions.tolist()
         for k in range(first, len(self._ids)):
-            agent = self._agent(k)
+            agent = agents[k]
             tx, ty = agent.target
-            x, y = self.positions[k]
+            x, y = positions[k]
             if math.hypot(x - tx, y - ty) < GOAL_REACHED:
                 agent.target = tuple(self._free_point().tolist())
             elif before is not None and math.hypot(x - before[k][0],

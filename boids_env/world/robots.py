@@ -347,6 +347,7 @@ class Unicycle(RobotModel):
         self._buffer = np.zeros((0, 3))
         self._flat = self._buffer.reshape(-1)
         self._hx = self._hy = np.zeros(0)
+        self._targets = self._robots_velocity = self._buffer
 
     def _constrain(self, space: pymunk.Space, control: pymunk.Body, robot: pymunk.Body) -> None:
         # No sideways slip: the robot's velocity across the control body's x axis (turned to
@@ -396,9 +397,16 @@ class Unicycle(RobotModel):
         else:
             step = self.max_turn_step
             self.omega = self.omega + np.clip(wanted - self.omega, -step, step)
-        self._turns = {h: (*rotation_terms(self.omega * h), self.omega * h)
-                       for h in set(world._schedule)}
+        # every distinct substep length at once: (H, N) arrays, the same elementwise bits
+        lengths = sorted(set(world._schedule))
+        phi = np.array(lengths)[:, None] * self.omega[None, :]
+        cos, sin = rotation_terms(phi)
+        self._turns = {h: (cos[k], sin[k], phi[k]) for k, h in enumerate(lengths)}
         self._hx, self._hy = self.vectors[:, 0].copy(), self.vectors[:, 1].copy()
+        n = world.n
+        self._targets = self._buffer[n : 2 * n]  # the control bodies' rows
+        self._robots_velocity = self._buffer[:n, 1:]
+        world._write_buffer().set_float_buf(self._flat)  # pymunk reads it every substep
         world._run_substeps(self._substep)
         # keep the heading a unit vector (each turn is exact only to rounding)
         norm = np.sqrt(self._hx * self._hx + self._hy * self._hy)
@@ -409,26 +417,26 @@ class Unicycle(RobotModel):
         along it, before pymunk integrates the substep."""
         c, s, turn = self._turns[h]
         hx, hy = self._hx, self._hy
-        turned = hx * c - hy * s
+        turned = hx * c
+        turned -= hy * s
         np.multiply(hx, s, out=hx)
         hx += hy * c
         hx, hy = turned, hx  # new (hx, hy)
         self._hx, self._hy = hx, hy
-        self.theta += turn
-        n = world.n
+        theta = self.theta
+        theta += turn
         read = world._read_buffer()
         read.clear()
         batch.get_space_bodies(world.space, _VELOCITY, read)
-        buf = self._buffer
         velocities = np.frombuffer(read.float_buf(), dtype=np.float64)
-        buf[:n, 1:] = velocities[: 2 * n].reshape(n, 2)  # the robots' own, written back as is
-        targets = buf[n : 2 * n]  # the control bodies: turned and moving along the heading
-        targets[:, 0] = self.theta
-        np.multiply(hx, self._speed, out=targets[:, 1])
-        np.multiply(hy, self._speed, out=targets[:, 2])
-        write = world._write_buffer()
-        write.set_float_buf(self._flat)
-        batch.set_space_bodies(world.space, _ANGLE_VELOCITY, write)
+        n = world.n
+        # the robots' own velocities, written back as they are
+        self._robots_velocity[...] = velocities[: 2 * n].reshape(n, 2)
+        targets, speed = self._targets, self._speed  # turned and moving along the heading
+        targets[:, 0] = theta
+        np.multiply(hx, speed, out=targets[:, 1])
+        np.multiply(hy, speed, out=targets[:, 2])
+        batch.set_space_bodies(world.space, _ANGLE_VELOCITY, world._write_buffer())
 
 
 _VELOCITY = batch.BodyFields.VELOCITY

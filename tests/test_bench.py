@@ -1,0 +1,34 @@
+"""The benchmark's rows run and its ratios are the quotients it names (no timings asserted:
+timing goals live in the benchmark itself)."""
+
+import pytest
+
+from boids_env.bench.run import SCENE_ROWS, _ratios, env_loop
+
+
+def _row(kind, robots, rate):
+    return {"kind": kind, "robots": robots, "env_steps_per_s": {"median": rate}}
+
+
+def test_ratios_are_each_row_over_its_baseline():
+    rows = [_row("physics", 19, 1000.0), _row("env random", 19, 400.0),
+            _row("env random arrays", 19, 550.0), _row("env reynolds", 19, 300.0),
+            _row("env reynolds lab", 19, 180.0), _row("env random lidar16", 19, 200.0),
+            _row("env random turtlebot3", 19, 100.0), _row("env random person crowd8", 19, 50.0),
+            _row("physics", 1000, 100.0), _row("env reynolds", 1000, 60.0),
+            _row("env reynolds arrays", 1000, 80.0)]
+    ratios = _ratios(rows)
+    assert ratios == {
+        "lab_over_default_19": 0.6, "lidar16_over_default_19": 0.5,
+        "turtlebot3_over_default_19": 0.25, "person_crowd8_over_default_19": 0.125,
+        "env_random_dict_19_over_physics_19": 0.4, "env_random_arrays_19_over_physics_19": 0.55,
+        "env_reynolds_dict_1000_over_physics_1000": 0.6,
+        "env_reynolds_arrays_1000_over_physics_1000": 0.8}
+
+
+@pytest.mark.parametrize("api", ["dict", "arrays"])
+@pytest.mark.parametrize("row", SCENE_ROWS, ids=lambda r: r[0])
+def test_every_world_row_steps(row, api):
+    _, policy, fields = row
+    loop = env_loop(19, 3, policy, api, **dict(fields))
+    assert loop() == 3 and loop() == 3  # reset between runs
