@@ -40,8 +40,6 @@ def training_rate(config: Any, rollouts: int = 3) -> dict[str, Any]:
 
     from boids_env.policies.sb3_policy import algorithm_class
     from boids_env.train.run import make_vec_env
-    from boids_env.train.vec_env import default_processes
-
     torch.set_num_threads(config.resolved_threads())
     venv = VecMonitor(make_vec_env(config))
     try:
@@ -55,7 +53,7 @@ def training_rate(config: Any, rollouts: int = 3) -> dict[str, Any]:
         seconds = time.perf_counter() - start
     finally:
         venv.close()
-    return {"processes": config.processes or default_processes(config.copies),
+    return {"processes": config.resolved_processes(),
             "torch_threads": config.resolved_threads(), "device": config.resolved_device(),
             "copies": config.copies, "follower_steps_per_s": rollouts * chunk / seconds}
 
@@ -65,12 +63,15 @@ def training_scaling(recipe: str = "ppo_safe", cores: list[int] | None = None
     """Training throughput of ``recipe`` on 1, 2 and all cores, each beside the raw env rate
     of the same copies. A setting of n cores pins its process (and the env workers it
     starts) to n cores and uses the defaults a machine of n cores gets: worker processes
-    from ``default_processes`` (copies raised to at least that many) and n learner threads.
+    from ``default_processes`` (copies raised to at least that many) and the learner threads
+    ``default_threads`` leaves them.
     Each runs in a fresh process so torch's thread pool starts clean."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    total = os.cpu_count() or 1
+    from boids_env.train.vec_env import available_cores
+
+    total = available_cores()
     cores = cores or sorted({1, min(2, total), total})
     rows = []
     for n in cores:  # not a Pool: its daemonic workers could not start env workers
@@ -81,14 +82,15 @@ def training_scaling(recipe: str = "ppo_safe", cores: list[int] | None = None
 
 def _scaling_row(recipe: str, cores: int) -> dict[str, Any]:
     from boids_env.train.config import TrainConfig, resolve_recipe
-    from boids_env.train.vec_env import default_processes
+    from boids_env.train.vec_env import default_processes, default_threads
 
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, sorted(os.sched_getaffinity(0))[:cores])
     config = TrainConfig.from_toml(resolve_recipe(recipe))
     processes = default_processes(max(config.copies, cores), cores)
     config = config.replace(copies=max(config.copies, processes), processes=processes,
-                            torch_threads=cores, eval_every=0, checkpoint_every=0)
+                            torch_threads=default_threads(processes, cores), eval_every=0,
+                            checkpoint_every=0)
     row = training_rate(config)
     row["cores"] = cores
     row["raw_env_agent_steps_per_s"] = raw_env_rate(config)

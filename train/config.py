@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
@@ -76,10 +75,10 @@ class TrainConfig:
     A world table must not set what an episode draws."""
     processes: int = 0
     """Worker processes the env copies are split over (1: stepped in the training process;
-    0: one per core from 3 cores on, else 1; see ``vec_env.default_processes``)."""
+    0: half the cores from 3 cores on, else 1; see ``vec_env.default_processes``)."""
     torch_threads: int = 0
-    """Torch threads of the learner (forward passes and updates run while the env workers
-    wait, so they may use every core); 0: the number of cores."""
+    """Torch threads of the learner; 0: the cores the env workers leave (all of them on 1
+    or 2 cores; see ``vec_env.default_threads``)."""
     device: str = "cpu"
     """Where the policy and its updates run: ``cpu`` (default), ``cuda``, or ``auto`` (cuda
     when a GPU is present). The env always runs on the CPU."""
@@ -199,9 +198,18 @@ class TrainConfig:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
 
     # -------------------------------------------------------------------------- derived
+    def resolved_processes(self) -> int:
+        """``processes``, or ``vec_env.default_processes`` of the copies when it is 0."""
+        from boids_env.train.vec_env import default_processes
+
+        return self.processes or default_processes(self.copies)
+
     def resolved_threads(self) -> int:
-        """``torch_threads``, or the number of cores when it is 0."""
-        return self.torch_threads or os.cpu_count() or 1
+        """``torch_threads``, or when it is 0 the cores the env workers leave
+        (``vec_env.default_threads``)."""
+        from boids_env.train.vec_env import default_threads
+
+        return self.torch_threads or default_threads(self.resolved_processes())
 
     def resolved_device(self) -> str:
         """``device`` with ``auto`` resolved (cuda if torch sees a GPU)."""

@@ -137,9 +137,26 @@ def test_worker_processes_with_shared_memory_match_one_process_exactly():
         many.close()
 
 
-def test_default_processes_follow_the_cores():
-    from boids_env.train.vec_env import default_processes
+def test_default_processes_and_threads_split_the_cores():
+    from boids_env.train.vec_env import default_processes, default_threads
 
-    assert default_processes(6, cores=2) == 1
-    assert default_processes(6, cores=16) == 6
-    assert default_processes(32, cores=16) == 16
+    assert default_processes(6, cores=2) == 1 and default_threads(1, cores=2) == 2
+    assert default_processes(6, cores=1) == 1 and default_threads(1, cores=1) == 1
+    # from 3 cores on: half the cores step the env copies, the rest run torch
+    assert default_processes(32, cores=16) == 8 and default_threads(8, cores=16) == 8
+    assert default_processes(32, cores=3) == 1 and default_threads(1, cores=3) == 2
+    assert default_processes(6, cores=16) == 6 and default_threads(6, cores=16) == 10
+    assert default_processes(32, cores=9) == 4 and default_threads(4, cores=9) == 5
+
+
+def test_train_config_resolves_processes_and_threads_from_the_cores(monkeypatch):
+    import os
+
+    from boids_env.train.config import TrainConfig
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(16)), raising=False)
+    config = TrainConfig(copies=16)
+    assert (config.resolved_processes(), config.resolved_threads()) == (8, 8)
+    pinned = config.replace(processes=4, torch_threads=3)
+    assert (pinned.resolved_processes(), pinned.resolved_threads()) == (4, 3)
+    assert config.replace(processes=12).resolved_threads() == 4
