@@ -175,7 +175,7 @@ def _recipes():
 
 def test_the_recipes_are_the_documented_ones():
     assert _recipes() == ["ppo_person", "ppo_safe", "ppo_safe_stage2", "ppo_scenes",
-                          "ppo_scenes_stage2", "ppo_scenes_stage3", "ppo_study",
+                          "ppo_scenes_stage2", "ppo_scenes_stage3", "ppo_scenes_stage4", "ppo_study",
                           "ppo_turtlebot", "ppo_turtlebot_stage2"]
 
 
@@ -227,6 +227,19 @@ def test_scenes_recipes_keep_the_shipped_observations_and_stage2_adds_the_filter
     third = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage3"))
     assert third.env_fields == {**second.env_fields, "reward_parked": 10.0}
     assert third.total_timesteps > second.total_timesteps
+    # stage 4 (the shipped learned-scenes): the parked term doubled, four 61-robot copies
+    fourth = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage4"))
+    assert fourth.env_fields == {**third.env_fields, "reward_parked": 20.0}
+    assert fourth.total_timesteps > third.total_timesteps
+    assert fourth.worlds == third.worlds
+    assert fourth.group_sizes.count(61) == 4 and third.group_sizes.count(61) == 2
+
+
+def test_learned_scenes_is_the_stage4_model():
+    from boids_env.policies.registry import load_policy
+
+    fields = load_policy("learned-scenes").env_fields
+    assert fields["reward_parked"] == 20.0 and fields["safety_filter"] is True
 
 
 def test_safety_filter_flag_reaches_the_env(tmp_path):
