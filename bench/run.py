@@ -44,6 +44,33 @@ def timed(fn: Callable[[], int], repeats: int) -> dict[str, float]:
     return {"median": statistics.median(rates), "min": min(rates), "max": max(rates)}
 
 
+def timed_together(loops: dict[str, Callable[[], int]], repeats: int
+                   ) -> tuple[dict[str, dict[str, float]], list[dict[str, float]]]:
+    """Runs every loop once per round, ``repeats`` rounds after a warm-up, so that every row
+    sees the same phases of a machine whose speed drifts (a shared VM here: ±25 % between
+    minutes); returns each loop's steps/s median and spread, and the rounds' rates (for
+    ratios taken round by round, :func:`paired_ratio`)."""
+    for fn in loops.values():
+        fn()  # warm-up
+    rounds = []
+    for _ in range(repeats):
+        rates = {}
+        for kind, fn in loops.items():
+            t = time.perf_counter()
+            steps = fn()
+            rates[kind] = steps / (time.perf_counter() - t)
+        rounds.append(rates)
+    summary = {kind: {"median": statistics.median(r[kind] for r in rounds),
+                      "min": min(r[kind] for r in rounds), "max": max(r[kind] for r in rounds)}
+               for kind in loops}
+    return summary, rounds
+
+
+def paired_ratio(rounds: list[dict[str, float]], kind: str, base: str) -> float:
+    """The median over rounds of ``kind``'s rate over ``base``'s in the same round."""
+    return statistics.median(r[kind] / r[base] for r in rounds)
+
+
 def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
              **fields: Any) -> Callable[[], int]:
     """Steps of the env with ``random`` or ``reynolds`` actions through the PettingZoo dict
@@ -118,16 +145,27 @@ def mpe_loop(agents: int, steps: int) -> Callable[[], int] | None:
     return run
 
 
-def _env_rows(sizes: list[int], repeats: int, record: Callable[..., None]) -> None:
+def _env_rows(sizes: list[int], repeats: int, record: Callable[..., None]
+              ) -> dict[str, float]:
+    """The rows of each group size, timed together; the env/physics ratios at 19 and 1000
+    robots, round by round."""
+    ratios = {}
     for n in sizes:
         steps = 400 if n <= 100 else 40
-        record("physics", n, n, timed(physics_loop(n, steps), repeats))
-        record("env random", n, n - 1, timed(env_loop(n, steps, "random"), repeats))
-        record("env random arrays", n, n - 1,
-               timed(env_loop(n, steps, "random", "arrays"), repeats))
-        record("env reynolds", n, n - 1, timed(env_loop(n, steps, "reynolds"), repeats))
-        record("env reynolds arrays", n, n - 1,
-               timed(env_loop(n, steps, "reynolds", "arrays"), repeats))
+        loops = {"physics": physics_loop(n, steps),
+                 "env random": env_loop(n, steps, "random"),
+                 "env random arrays": env_loop(n, steps, "random", "arrays"),
+                 "env reynolds": env_loop(n, steps, "reynolds"),
+                 "env reynolds arrays": env_loop(n, steps, "reynolds", "arrays")}
+        summary, rounds = timed_together(loops, repeats)
+        for kind, rate in summary.items():
+            record(kind, n, n if kind == "physics" else n - 1, rate)
+        policy = {19: "random", 1000: "reynolds"}.get(n)
+        if policy:
+            for kind, api in ((f"env {policy}", "dict"), (f"env {policy} arrays", "arrays")):
+                ratios[f"env_{policy}_{api}_{n}_over_physics_{n}"] = paired_ratio(
+                    rounds, kind, "physics")
+    return ratios
 
 
 SCENE_ROWS = (("env reynolds lab", "reynolds", {"scene": "lab"}),
@@ -143,16 +181,27 @@ crowd)."""
 BASE_ROWS = {"reynolds": "env reynolds", "random": "env random"}
 
 
-def _scene_rows(repeats: int, record: Callable[..., None]) -> None:
-    for kind, policy, fields in SCENE_ROWS:
-        record(kind, 19, 18, timed(env_loop(19, 300, policy, **fields), repeats))
+def _scene_rows(repeats: int, record: Callable[..., None]) -> dict[str, float]:
+    """The world rows, timed together with the default rows they are compared with; each
+    one's ratio to its default round by round."""
+    loops = {base: env_loop(19, 300, policy) for policy, base in BASE_ROWS.items()}
+    loops.update({kind: env_loop(19, 300, policy, **fields) for kind, policy, fields in SCENE_ROWS})
+    summary, rounds = timed_together(loops, repeats)
+    ratios = {}
+    for kind, policy, _ in SCENE_ROWS:
+        record(kind, 19, 18, summary[kind])
+        ratios[_ratio_name(kind)] = paired_ratio(rounds, kind, BASE_ROWS[policy])
+    return ratios
+
+
+def _ratio_name(kind: str) -> str:
+    return f"{kind.split()[-1] if 'crowd' not in kind else 'person_crowd8'}_over_default_19"
 
 
 def _ratios(rows: list[dict[str, Any]]) -> dict[str, float]:
     by_kind = {(r["kind"], r["robots"]): r["env_steps_per_s"]["median"] for r in rows}
     ratios = {}
-    pairs = {f"{kind.split()[-1] if 'crowd' not in kind else 'person_crowd8'}_over_default_19":
-             (kind, BASE_ROWS[policy]) for kind, policy, _ in SCENE_ROWS}
+    pairs = {_ratio_name(kind): (kind, BASE_ROWS[policy]) for kind, policy, _ in SCENE_ROWS}
     for name, (new, base) in pairs.items():
         if (new, 19) in by_kind and (base, 19) in by_kind:
             ratios[name] = by_kind[(new, 19)] / by_kind[(base, 19)]
@@ -194,8 +243,8 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"agent-steps/s", flush=True)
 
     if not args.training:
-        _env_rows(sizes, repeats, record)
-        _scene_rows(repeats, record)
+        paired = _env_rows(sizes, repeats, record)
+        paired.update(_scene_rows(repeats, record))
         for n in [6, 12, 18] if not args.quick else [18]:
             loop = mpe_loop(n, 200)
             if loop is None:
@@ -203,7 +252,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 break
             record("mpe2 simple_spread", n, n, timed(loop, repeats))
         out["results"] = rows
-        out["ratios"] = _ratios(rows)
+        # ratios taken round by round (rows timed together), over the medians' quotients
+        out["ratios"] = {**_ratios(rows), **paired}
         for name, value in out["ratios"].items():
             print(f"{name:<32} {value:6.2f}")
     if not args.quick:

@@ -32,3 +32,18 @@ def test_every_world_row_steps(row, api):
     _, policy, fields = row
     loop = env_loop(19, 3, policy, api, **dict(fields))
     assert loop() == 3 and loop() == 3  # reset between runs
+
+
+def test_paired_ratios_are_taken_round_by_round():
+    from boids_env.bench.run import paired_ratio, timed_together
+
+    # a machine twice as fast in the second round: each round's quotient is 0.5
+    rounds = [{"base": 100.0, "kind": 50.0}, {"base": 200.0, "kind": 100.0},
+              {"base": 150.0, "kind": 30.0}]
+    assert paired_ratio(rounds, "kind", "base") == 0.5
+    calls = []
+    summary, timed_rounds = timed_together(
+        {"a": lambda: calls.append("a") or 10, "b": lambda: calls.append("b") or 20}, 3)
+    assert calls == ["a", "b"] * 4  # a warm-up, then every loop once per round, in turn
+    assert len(timed_rounds) == 3 and set(summary) == {"a", "b"}
+    assert all(s["min"] <= s["median"] <= s["max"] for s in summary.values())
