@@ -47,3 +47,19 @@ def test_paired_ratios_are_taken_round_by_round():
     assert calls == ["a", "b"] * 4  # a warm-up, then every loop once per round, in turn
     assert len(timed_rounds) == 3 and set(summary) == {"a", "b"}
     assert all(s["min"] <= s["median"] <= s["max"] for s in summary.values())
+
+
+def test_digests_match_the_pinned_golden_trajectories():
+    import json
+    from pathlib import Path
+
+    from boids_env import parallel_env
+    from boids_env.bench.digests import digest
+    from boids_env.eval.episode import run_episode
+    from boids_env.policies import ReynoldsPolicy
+
+    golden = json.loads((Path(__file__).parent / "env" / "golden_reynolds.json").read_text())
+    case = golden[0]  # the study's default case
+    result = run_episode(parallel_env(**case["fields"]), ReynoldsPolicy(**case["policy"]),
+                         seed=case["seed"])
+    assert digest(result.recording.positions, result.recording.commanded) == case["sha"]
