@@ -429,10 +429,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         return terms
 
     def _safety_terms(self, positions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """The safety reward terms (3, F): −weight · flag · dt, zeros when no weight is set."""
+        """The safety reward terms (3, F): −weight · flag · dt (called when a weight is set)."""
         scale = self._safety_scale
-        if not scale.any():
-            return np.zeros((3, len(positions) - 1))
         cfg = self.episode_config
         wall = max(cfg.metrics.wall_distance, cfg.world.robot_radius + metrics.CONTACT_TOLERANCE)
         flags = metrics.safety_flags(positions, cfg.world.robot_radius,
@@ -442,26 +440,23 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
 
     def _gap_term(self, positions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """The cohesion-gap reward term (1, F): −weight · metres beyond the cohesion threshold
-        · dt; zeros when its weight is 0."""
-        if not self._gap_scale:
-            return np.zeros((1, len(positions) - 1))
+        · dt (called when its weight is set)."""
         gap = metrics.cohesion_gap(positions, self.episode_config.metrics.cohesion_threshold)
         return self._gap_scale * gap[None]
 
     def _intrusion_term(self, world: World) -> npt.NDArray[np.float64]:
         """The intrusion reward term (1, F): −weight · dt while a follower's centre is within
         ``intrusion_distance`` of the leader's (a person's personal space) or of a
-        pedestrian's; zeros when its weight is 0."""
-        if not self._intrusion_scale:
-            return np.zeros((1, world.n - 1))
+        pedestrian's (called when its weight is set)."""
         flags = proxemics.intrusion_flags(world.positions, world.pedestrian_positions,
                                         self.episode_config.metrics.intrusion_distance)
         return self._intrusion_scale * flags[None]
 
     def _parked_term(self, velocities: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """The parked reward term (1, F): −weight · follower speed · dt once the leader's
-        command has been zero for more than ``parked_after``; zeros otherwise."""
-        if not self._parked_scale or self._still_steps <= self._parked_steps:
+        command has been zero for more than ``parked_after``, zeros before (called when its
+        weight is set)."""
+        if self._still_steps <= self._parked_steps:
             return np.zeros((1, len(velocities) - 1))
         speed = np.sqrt(np.einsum("fd,fd->f", velocities[1:], velocities[1:]))
         return self._parked_scale * speed[None]

@@ -33,12 +33,6 @@ from boids_env.world.scene import Scene
 
 FloatArray = npt.NDArray[np.float64]
 
-WALL_THICKNESS = 1.0
-"""Radius (m) of the wall segments; their inner faces are at ±arena_half_size. Thick walls:
-a robot would have to travel this far in one physics substep to pass through one (the config
-caps a substep's travel at a robot radius)."""
-
-
 PERSON_MASS = 70.0
 """Mass (kg) of a person's body (the leader person and every pedestrian): a 0.18 kg robot
 pushing it with its 1 N drive moves it by micrometres."""
