@@ -69,7 +69,7 @@ def training_scaling(recipe: str = "ppo_safe", cores: list[int] | None = None
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    from boids_env.train.vec_env import available_cores
+    from boids_env.eval.pool import available_cores
 
     total = available_cores()
     cores = cores or sorted({1, min(2, total), total})
@@ -152,7 +152,9 @@ def paper_suite_seconds(workers: int | None = None) -> dict[str, float] | None:
         from boids_env.eval.suites import PAPER
     except ImportError:
         return None
-    workers = workers or os.cpu_count() or 1
+    from boids_env.eval.pool import available_cores
+
+    workers = workers or available_cores()
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         run_suite([PolicySpec("reynolds")], PAPER, tmp, workers=workers, progress=False)

@@ -56,6 +56,14 @@ STOP_GRACE = 2.0
 """Seconds an idle worker gets to exit after being told to, before it is killed."""
 
 
+def available_cores() -> int:
+    """The cores this process may run on (its affinity set where the OS has one: a process
+    pinned to 4 of 16 cores, or a container's share, counts 4), for sizing worker pools."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
 def guarded(fn: Callable[[Any], dict[str, Any]], item: Any) -> Outcome:
     """``fn(item)`` as an :data:`Outcome`: any exception, ``SystemExit`` and
     ``KeyboardInterrupt`` included, becomes a failure row with its traceback (``fatal`` is

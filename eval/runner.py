@@ -20,7 +20,6 @@ import functools
 import hashlib
 import json
 import math
-import os
 import pickle
 import re
 import sys
@@ -35,7 +34,13 @@ from typing import Any
 import pandas as pd
 
 from boids_env.eval import folder
-from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT, guarded, run_isolated
+from boids_env.eval.pool import (
+    BACKENDS,
+    DEFAULT_EPISODE_TIMEOUT,
+    available_cores,
+    guarded,
+    run_isolated,
+)
 from boids_env.eval.progress import bar as progress_bar
 from boids_env.eval.suites import Case, Suite
 from boids_env.files import append_line, atomic_path, write_json
@@ -415,7 +420,7 @@ def _execute(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]],
     elif backend == "ray":
         _execute_ray(tasks, run, workers, timeout, record)
     else:
-        run_isolated(tasks, run, record, workers=min(workers or os.cpu_count() or 1,
+        run_isolated(tasks, run, record, workers=min(workers or available_cores(),
                                                      len(tasks)), timeout=timeout)
 
 

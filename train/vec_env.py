@@ -17,7 +17,6 @@ and steps them in one call), which pays when several copies are stepped per VecE
 from __future__ import annotations
 
 import multiprocessing as mp
-import os
 import traceback
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -29,6 +28,7 @@ import numpy.typing as npt
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from boids_env.environment import BoidsEnv
+from boids_env.eval.pool import available_cores
 
 EPISODE_INFO = "flock_episode"
 """Info key, on the first slot of a copy whose episode just ended: that episode's V_*,
@@ -278,7 +278,7 @@ class FlockVecEnv(VecEnv):
         if isinstance(processes, bool) or not isinstance(processes, int) \
                 or not 0 <= processes <= len(specs):
             raise ValueError(f"processes must be an integer in [0, {len(specs)}] (the number "
-                             f"of copies; 0: one per core), got {processes!r}")
+                             f"of copies; 0: half the cores), got {processes!r}")
         processes = processes or default_processes(len(specs))
         self.specs = specs
         probe = [spec.make() for spec in specs]
@@ -388,14 +388,6 @@ class FlockVecEnv(VecEnv):
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         return [None] * len(self.specs)
-
-
-def available_cores() -> int:
-    """The cores this process may run on (its affinity set where the OS has one: a process
-    pinned to 4 of 16 cores, or a container's share, counts 4)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return os.cpu_count() or 1
 
 
 def default_processes(copies: int, cores: int | None = None) -> int:
