@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from boids_env.files import write_text
+
 EPISODES: tuple[tuple[str, dict[str, Any], int], ...] = (
     ("reynolds", {}, 0),
     ("reynolds", {"leader_speed": 0.5}, 4),
@@ -64,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     text = json.dumps(digests(), indent=1, sort_keys=True, default=float)
     print(text)
     if args.out:
-        Path(args.out).write_text(text + "\n")
+        write_text(Path(args.out), text + "\n")  # atomic: no torn file on a kill
     return 0
 
 

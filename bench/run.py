@@ -22,6 +22,7 @@ import numpy as np
 
 from boids_env import EnvConfig, ScenarioConfig, parallel_env
 from boids_env.config import layout_extent
+from boids_env.files import write_text
 from boids_env.policies import ReynoldsPolicy
 from boids_env.world.scenario import initial_positions
 from boids_env.world.space import World
@@ -259,7 +260,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.quick:
         _slow_rows(out, training_only=args.training)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(out, indent=2))
+    write_text(args.out, json.dumps(out, indent=2))  # atomic: no torn file on a kill
     print(f"wrote {args.out}")
     return 0
 
