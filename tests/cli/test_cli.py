@@ -176,7 +176,7 @@ def _recipes():
 def test_the_recipes_are_the_documented_ones():
     assert _recipes() == ["ppo_person", "ppo_safe", "ppo_safe_stage2", "ppo_scenes",
                           "ppo_scenes_stage2", "ppo_scenes_stage3", "ppo_scenes_stage4",
-                          "ppo_study", "ppo_turtlebot", "ppo_turtlebot_stage2"]
+                          "ppo_scenes_stage5", "ppo_study", "ppo_turtlebot", "ppo_turtlebot_stage2"]
 
 
 @pytest.mark.parametrize("name", _recipes())
@@ -233,6 +233,16 @@ def test_scenes_recipes_keep_the_shipped_observations_and_stage2_adds_the_filter
     assert fourth.total_timesteps > third.total_timesteps
     assert fourth.worlds == third.worlds
     assert fourth.group_sizes.count(61) == 4 and third.group_sizes.count(61) == 2
+    # stage 5 (the experiment): stage 4 with two more pillar-field copies, nothing else
+    fifth = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage5"))
+    assert fifth.env_fields == fourth.env_fields
+    assert fifth.total_timesteps > fourth.total_timesteps
+    assert fifth.copies == fourth.copies + 2 == len(fifth.worlds) == len(fifth.group_sizes)
+    assert fifth.worlds[:16] == fourth.worlds and fifth.group_sizes[:16] == fourth.group_sizes
+    assert fifth.worlds[16:] == ({"scene": "pillars"},) * 2 and fifth.group_sizes[16:] == (13, 19)
+    assert dataclasses.replace(fifth, total_timesteps=fourth.total_timesteps,
+                               worlds=fourth.worlds, group_sizes=fourth.group_sizes,
+                               copies=fourth.copies) == fourth
 
 
 def test_learned_scenes_is_the_stage4_model():
