@@ -246,7 +246,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
         self._tail_steps = round(sc.tail_time / wc.dt)
         self._finish_step: int | None = None
+        # (commanded, executed, crowd, native) of every step, replayed by __setstate__
         self._history: list[tuple[npt.NDArray[np.float64] | None,
+                                  npt.NDArray[np.float64] | None,
                                   npt.NDArray[np.float64] | None,
                                   npt.NDArray[np.float64] | None]] = []
         self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)

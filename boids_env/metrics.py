@@ -436,9 +436,11 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
     out["count_align_unwrapped"] = study.sum(axis=0).astype(np.int64).tolist()
     if headings is not None:
         steps = max(int(positions.shape[0]), 1)
-        on_heading = heading_misalignment(headings, config)
+        # the configured source's flags are V_align's: only the other one is computed
+        by_heading = config.alignment_source == "heading"
+        on_heading = flags["alignment"] if by_heading else heading_misalignment(headings, config)
         on_command = flags_for(replace(config, alignment_source="command"), positions,
-                               commanded)["alignment"]
+                               commanded)["alignment"] if by_heading else flags["alignment"]
         out["V_align_heading"] = float(on_heading.sum() / steps)
         out["count_align_heading"] = on_heading.sum(axis=0).astype(np.int64).tolist()
         out["V_align_command"] = float(on_command.sum() / steps)
