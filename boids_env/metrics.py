@@ -414,7 +414,9 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         ``V_sep``, ``V_coh``, ``V_align``, the per-follower ``count_*`` lists,
         ``V_align_unwrapped`` and ``count_align_unwrapped`` (the study's unwrapped rule),
         ``duration`` (T, s), ``steps``, ``min_distance`` (m), ``collisions``,
-        ``polarization`` (episode mean), ``mean_leader_distance`` (m), the safety
+        ``polarization`` (episode mean), ``mean_leader_distance`` (m),
+        ``final_leader_distance_max`` (the farthest any follower is from the leader at the
+        last sample, m: a follower left behind), the safety
         metrics of :func:`safety_metrics` (``SAFETY_KEYS``), ``no_sight`` (each
         follower's fraction of time without line of sight to the leader), when the
         leader stood still for more than 5 s, :func:`parked_metrics`; for robots with a
@@ -448,6 +450,9 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
     out["duration"] = float(positions.shape[0] * dt)
     out["polarization"] = float(polarization(velocities).mean())
     out["mean_leader_distance"] = float(leader_distance(positions).mean())
+    out["final_leader_distance_max"] = (float(leader_distance(positions[-1:]).max())
+                                        if positions.shape[0] and positions.shape[1] > 1
+                                        else 0.0)
     pos = np.asarray(positions, dtype=float)
     sight = line_of_sight(pos, scene)
     safety = safety_metrics(pos, robot_radius, scene.within(pos, robot_radius,

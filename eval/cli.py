@@ -36,6 +36,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     _report_parser(sub)
     _ros_parser(sub)
     _scenes_parser(sub)
+    _select_parser(sub)
 
 
 def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
@@ -398,6 +399,50 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         print(f"boids eval: {len(failed)} episodes failed (listed in {out / 'errors.jsonl'} "
               f"and the report)", file=sys.stderr)
         return 1
+    return 0
+
+
+def _select_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("select", help="rank model checkpoints by the lab-follower bars on "
+                       "the validation suite (trained cases, seeds 100-104)",
+                       description="Runs the validation suite (the scenes but the lab, 61 "
+                       "robots, a leader standing 40 s; seeds 100-104) for the reference "
+                       "policy and every candidate, scores each candidate on the bars (the "
+                       "arena at most half the reference's total, each scene below it, 61 "
+                       "robots' V_coh within 0.2 of it, parked speed <= 0.05 m/s; with wall "
+                       "contact and touching <= 1 %% and no follower beyond 3 m at the end) "
+                       "and prints the ranking: most bars met, then the lower summed total. "
+                       "Writes bars.csv, ranking.csv and selection.json to --out.")
+    p.add_argument("candidates", nargs="+", metavar="MODEL",
+                   help="model .zip files (checkpoints) or policy names to rank")
+    p.add_argument("--reference", default="reynolds",
+                   help="the policy the relative bars compare against (reynolds)")
+    p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
+    p.add_argument("--seeds", type=int, nargs="+", default=None, metavar="SEED",
+                   help="validation episodes' seeds (100 101 102 103 104)")
+    p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
+    p.add_argument("--out", default="runs/select", help="output folder (runs/select); "
+                   "rerunning with the same candidates resumes there")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (shown on a terminal only)")
+    p.set_defaults(func=_cmd_select)
+
+
+def _cmd_select(args: argparse.Namespace) -> int:
+    require("eval", *_policy_extras([args.reference, *args.candidates]),
+            purpose="boids select")
+    import pandas as pd
+
+    from boids_env.eval.select import select
+
+    ranked = select(args.candidates, args.out, reference=args.reference,
+                    workers=args.workers, seeds=args.seeds, trust=args.trust_model,
+                    progress=not args.no_progress)
+    with pd.option_context("display.width", 200, "display.max_colwidth", 80):
+        print(ranked.drop(columns="spec").to_string(index=False))
+    print(f"chosen: {ranked['spec'].iloc[0]} ({ranked['met'].iloc[0]} of "
+          f"{ranked['bars'].iloc[0]} bars); wrote bars.csv, ranking.csv, selection.json "
+          f"to {args.out}")
     return 0
 
 

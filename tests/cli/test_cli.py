@@ -176,7 +176,8 @@ def _recipes():
 def test_the_recipes_are_the_documented_ones():
     assert _recipes() == ["ppo_person", "ppo_safe", "ppo_safe_stage2", "ppo_scenes",
                           "ppo_scenes_stage2", "ppo_scenes_stage3", "ppo_scenes_stage4",
-                          "ppo_scenes_stage5", "ppo_study", "ppo_turtlebot", "ppo_turtlebot_stage2"]
+                          "ppo_scenes_stage5", "ppo_scenes_stage6", "ppo_study", "ppo_turtlebot",
+                          "ppo_turtlebot_stage2"]
 
 
 @pytest.mark.parametrize("name", _recipes())
@@ -243,6 +244,19 @@ def test_scenes_recipes_keep_the_shipped_observations_and_stage2_adds_the_filter
     assert dataclasses.replace(fifth, total_timesteps=fourth.total_timesteps,
                                worlds=fourth.worlds, group_sizes=fourth.group_sizes,
                                copies=fourth.copies) == fourth
+    # stage 6 (consolidation, then boids select): two more open-arena copies, the parked term
+    # 30, a third of the learning rate, a checkpoint every 250 k steps
+    sixth = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage6"))
+    assert sixth.env_fields == {**fifth.env_fields, "reward_parked": 30.0}
+    assert sixth.worlds[:18] == fifth.worlds and sixth.worlds[18:] == ({}, {})
+    assert sixth.group_sizes[:18] == fifth.group_sizes and sixth.group_sizes[18:] == (13, 19)
+    assert (sixth.learning_rate, fifth.learning_rate) == (1e-4, 3e-4)
+    assert sixth.checkpoint_every == 250_000
+    assert sixth.total_timesteps == fifth.total_timesteps + 3_000_000
+    assert dataclasses.replace(
+        sixth, total_timesteps=fifth.total_timesteps, worlds=fifth.worlds,
+        group_sizes=fifth.group_sizes, copies=fifth.copies, env_fields=fifth.env_fields,
+        learning_rate=fifth.learning_rate, checkpoint_every=fifth.checkpoint_every) == fifth
 
 
 def test_learned_scenes_is_the_stage4_model():

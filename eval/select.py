@@ -1,0 +1,150 @@
+"""Choosing a checkpoint by bars (``boids select``): every candidate model and a reference
+policy run the ``validation`` suite, each candidate is scored on issue 26's bars for lab
+followers against the reference, and the candidates are ranked — most bars met first, then
+the lower summed total (V_sep + V_coh + V_align over the cases). A recipe that keeps its
+checkpoints names this rule before it trains; the rule is data (:data:`BARS`), so a report
+can say exactly what was met."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from boids_env.files import write_text
+
+TOTAL = ("V_sep", "V_coh", "V_align")
+
+
+@dataclass(frozen=True)
+class Bar:
+    """One case's bar: the candidate's episode mean of ``metric`` must be at most
+    ``factor`` × the reference's mean + ``offset`` (``strict``: below it), or at most
+    ``absolute`` when that is set (no reference needed)."""
+
+    case: str
+    metric: str
+    factor: float = 1.0
+    offset: float = 0.0
+    strict: bool = False
+    absolute: float | None = None
+
+    def limit(self, reference: float) -> float:
+        return self.absolute if self.absolute is not None else \
+            self.factor * reference + self.offset
+
+    def met(self, value: float, reference: float) -> bool:
+        limit = self.limit(reference)
+        return value < limit if self.strict else value <= limit
+
+    @property
+    def text(self) -> str:
+        rel = "<" if self.strict else "<="
+        if self.absolute is not None:
+            return f"{self.metric} {rel} {self.absolute:g}"
+        scaled = "reference" if self.factor == 1.0 else f"{self.factor:g}x reference"
+        return f"{self.metric} {rel} {scaled}" + (f" + {self.offset:g}" if self.offset else "")
+
+
+BARS = (Bar("arena", "total", factor=0.5),
+        *(Bar(scene, "total", strict=True)
+          for scene in ("small_room", "doorway", "corridor", "pillars")),
+        Bar("61 robots", "V_coh", offset=0.2),
+        Bar("standing 40 s", "parked_speed", absolute=0.05))
+"""Issue 26's bars on the ``validation`` suite's cases: the open arena at most half the
+reference's total, each scene below it, 61 robots' V_coh within 0.2 of it, and followers
+parked (mean speed ≤ 0.05 m/s after 5 s of standstill) around a standing leader."""
+
+SAFETY = (("wall_fraction", 0.01), ("touching_fraction", 0.01))
+"""Every case also needs these episode means at most so (1 % of the time)."""
+FARTHEST = 3.0
+"""… and no follower farther than this (m) from the leader at any episode's end."""
+
+
+def bar_table(table: pd.DataFrame, reference: str, bars: Sequence[Bar] = BARS
+              ) -> pd.DataFrame:
+    """One row per (candidate, bar): its value, the limit, the safety figures and whether
+    the bar (with the safety conditions) is met.
+
+    Args:
+        table: the runner's results (``policy``, ``case``, the metrics; one row per episode).
+        reference: the ``policy`` label the relative bars compare against.
+    """
+    frame = table.assign(total=table[list(TOTAL)].sum(axis=1))
+    if reference not in set(frame["policy"]):
+        raise ValueError(f"reference {reference!r} has no episodes; policies: "
+                         f"{sorted(set(frame['policy']))}")
+    missing = sorted({b.case for b in bars} - set(frame["case"]))
+    if missing:
+        raise ValueError(f"the results have no episodes of case(s) {missing}")
+    rows = []
+    for bar in bars:
+        of_case = frame[frame["case"] == bar.case]
+        ref = (float(of_case[of_case["policy"] == reference][bar.metric].mean())
+               if bar.metric in of_case else float("nan"))
+        for policy, runs in of_case[of_case["policy"] != reference].groupby("policy",
+                                                                              sort=False):
+            # a metric no episode has (no parked samples: the leader never stood 5 s) is NaN,
+            # and NaN meets no bar
+            value = float(runs[bar.metric].mean()) if bar.metric in runs else float("nan")
+            safety = {key: float(runs[key].mean()) for key, _ in SAFETY}
+            farthest = float(runs["final_leader_distance_max"].max())
+            met = (bar.met(value, ref) and all(safety[k] <= lim for k, lim in SAFETY)
+                   and farthest <= FARTHEST)
+            rows.append({"policy": policy, "case": bar.case, "bar": bar.text,
+                         "value": value, "limit": bar.limit(ref), **safety,
+                         "farthest": farthest, "total": float(runs["total"].mean()),
+                         "met": met, "episodes": len(runs)})
+    return pd.DataFrame(rows)
+
+
+def ranking(bars: pd.DataFrame) -> pd.DataFrame:
+    """Candidates ranked: most bars met, then the lower summed total (ties kept in order)."""
+    out = bars.groupby("policy", sort=False).agg(met=("met", "sum"), bars=("met", "size"),
+                                                  summed_total=("total", "sum"))
+    out["missed"] = [", ".join(bars[(bars["policy"] == p) & ~bars["met"]]["case"])
+                     for p in out.index]
+    return (out.assign(_neg=-out["met"])
+            .sort_values(["_neg", "summed_total"], kind="stable").drop(columns="_neg")
+            .reset_index())
+
+
+def select(candidates: Sequence[str], out: str | Path, *, reference: str = "reynolds",
+           workers: int | None = None, seeds: Sequence[int] | None = None,
+           trust: bool = False, progress: bool = True, suite: Any = None,
+           bars: Sequence[Bar] = BARS) -> pd.DataFrame:
+    """Runs ``suite`` (default: ``validation``) for ``reference`` and every candidate
+    (resumable in ``out``), writes ``bars.csv``, ``ranking.csv`` and ``selection.json`` (the
+    chosen candidate first) there, and returns the ranking."""
+    from boids_env.eval import folder
+    from boids_env.eval.runner import PolicySpec, distinct_policies, run_suite
+    from boids_env.eval.suites import VALIDATION
+
+    if not candidates:
+        raise ValueError("candidates must name at least one model")
+    if reference in candidates:
+        raise ValueError(f"reference {reference!r} is also a candidate")
+    specs = [PolicySpec.parse(reference), *(PolicySpec.parse(c, trust=trust)
+                                            for c in candidates)]
+    suite = (VALIDATION if suite is None else suite).with_seeds(seeds)
+    table = run_suite(specs, suite, out, workers=workers, progress=progress)
+    labelled = distinct_policies(specs)  # the runner's labels (a path where stems repeat)
+    labels = {s.label: s.spec for s in labelled}
+    scored = bar_table(table, labelled[0].label, bars)
+    ranked = ranking(scored)
+    ranked.insert(1, "spec", [labels.get(p, p) for p in ranked["policy"]])
+    out = Path(out)
+    write_text(out / "bars.csv", scored.to_csv(index=False))
+    write_text(out / "ranking.csv", ranked.to_csv(index=False))
+    choice: dict[str, Any] = {"chosen": ranked["spec"].iloc[0], "reference": reference,
+                              "seeds": list(suite.seeds),
+                              "bars": [b.__dict__ | {"text": b.text} for b in bars],
+                              "ranking": ranked.to_dict(orient="records")}
+    write_text(out / "selection.json", json.dumps(choice, indent=1, default=float))
+    folder.record_files(out, ("bars.csv", "ranking.csv", "selection.json"))
+    return ranked
+

@@ -1,0 +1,146 @@
+"""Checkpoint selection by bars (``boids select``): the bars' arithmetic on a hand-made table,
+the validation suite's cases, and a short end-to-end run."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from boids_env import parallel_env
+from boids_env.eval.episode import run_episode
+from boids_env.eval.select import BARS, Bar, bar_table, ranking, select
+from boids_env.eval.suites import DEPLOYMENT, SCENES, VALIDATION, Case, Suite
+from boids_env.policies import ReynoldsPolicy
+from boids_env.train.cli import main
+
+TWO = (Bar("arena", "total", factor=0.5), Bar("small_room", "total", strict=True))
+
+
+def _row(policy, case, total, touching=0.0, wall=0.0, farthest=1.0):
+    # the total split over the three V_* (the table sums them)
+    return {"policy": policy, "case": case, "V_sep": total / 2, "V_coh": total / 4,
+            "V_align": total / 4, "touching_fraction": touching, "wall_fraction": wall,
+            "final_leader_distance_max": farthest}
+
+
+def _table(*rows):
+    return pd.DataFrame([_row(*r) for r in rows])
+
+
+def test_bars_compare_episode_means_with_the_reference():
+    table = _table(("R", "arena", 1.5), ("R", "arena", 2.5),           # reference mean 2.0
+                   ("R", "small_room", 4.0),
+                   ("A", "arena", 0.8), ("A", "arena", 1.0),           # 0.9 <= 0.5 * 2.0
+                   ("A", "small_room", 4.0),                           # not < 4.0 (strict)
+                   ("B", "arena", 1.0), ("B", "arena", 1.0),           # 1.0 <= 1.0: met
+                   ("B", "small_room", 3.0))
+    bars = bar_table(table, "R", TWO)
+    got = {(r.policy, r.case): (r.value, r.limit, r.met) for r in bars.itertuples()}
+    assert got[("A", "arena")] == (pytest.approx(0.9), pytest.approx(1.0), True)
+    assert got[("A", "small_room")] == (pytest.approx(4.0), pytest.approx(4.0), False)
+    assert got[("B", "arena")][2] and got[("B", "small_room")][2]
+    ranked = ranking(bars)
+    assert list(ranked["policy"]) == ["B", "A"]
+    assert list(ranked["met"]) == [2, 1] and list(ranked["missed"]) == ["", "small_room"]
+
+
+def test_safety_and_a_lost_follower_fail_a_bar_and_ties_go_to_the_lower_total():
+    table = _table(("R", "arena", 2.0), ("R", "small_room", 4.0),
+                   ("A", "arena", 0.9), ("A", "small_room", 4.5),            # total misses
+                   ("B", "arena", 0.5, 0.0, 0.0, 3.2),                       # one lost (3.2 m)
+                   ("B", "small_room", 3.0),
+                   ("C", "arena", 0.5), ("C", "small_room", 3.0, 0.02),       # touching 2 %
+                   ("D", "arena", 0.5), ("D", "small_room", 3.0, 0.0, 0.011))  # wall 1.1 %
+    ranked = ranking(bar_table(table, "R", TWO))
+    assert dict(zip(ranked["policy"], ranked["met"], strict=True)) == \
+        {"A": 1, "B": 1, "C": 1, "D": 1}
+    # every one meets one bar; summed totals: A 5.4, B 3.5, C 3.5, D 3.5 (kept in order)
+    assert list(ranked["policy"]) == ["B", "C", "D", "A"]
+    assert list(ranked["summed_total"]) == pytest.approx([3.5, 3.5, 3.5, 5.4])
+
+
+def test_a_metric_no_episode_has_meets_no_bar():
+    table = _table(("R", "arena", 2.0), ("A", "arena", 0.5))
+    bars = bar_table(table, "R", (Bar("arena", "parked_speed", absolute=0.05),))
+    assert np.isnan(bars["value"].iloc[0]) and not bars["met"].iloc[0]
+
+
+def test_bar_table_refuses_a_missing_reference_or_case():
+    table = _table(("R", "arena", 2.0), ("A", "arena", 0.5))
+    with pytest.raises(ValueError, match="reference 'X'"):
+        bar_table(table, "X", TWO[:1])
+    with pytest.raises(ValueError, match="small_room"):
+        bar_table(table, "R", TWO)
+
+
+def test_the_bars_are_issue_26s():
+    by_case = {b.case: b for b in BARS}
+    assert by_case["arena"].text == "total <= 0.5x reference"
+    for scene in ("small_room", "doorway", "corridor", "pillars"):
+        assert by_case[scene].text == "total < reference"
+    assert by_case["61 robots"].text == "V_coh <= reference + 0.2"
+    assert by_case["standing 40 s"].text == "parked_speed <= 0.05"
+    assert by_case["61 robots"].limit(5.3) == pytest.approx(5.5)
+
+
+def test_validation_holds_trained_cases_only_on_other_seeds():
+    from boids_env.train.config import TrainConfig, resolve_recipe
+
+    names = {c.name for c in VALIDATION.cases}
+    assert names == {b.case for b in BARS}
+    unseen = {c.name for c in DEPLOYMENT.cases if c.group == "unseen"} | {"lab"}
+    assert not names & unseen
+    assert not set(VALIDATION.seeds) & set(SCENES.seeds)
+    # every case is a world and draw the recipe trains on (the small room: the 5 m arena
+    # copies, walls at 2.5 m and the square at 2 m, the same geometry)
+    recipe = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage6"))
+    scenes = {w.get("scene", "arena") for w in recipe.worlds}
+    if {"arena_half_size": 2.5, "path_size": 2.0} in recipe.worlds:
+        scenes.add("small_room")
+    pauses = {tuple(map(tuple, p)) for p in recipe.leader_pauses}
+    for case in VALIDATION.cases:
+        assert case.env.get("scene", "arena") in scenes, case.name
+        assert case.env.get("robots", 13) in recipe.group_sizes, case.name
+        assert tuple(case.env.get("leader_pauses", ())) in pauses, case.name
+
+
+def test_final_leader_distance_max_is_the_last_samples_farthest_follower():
+    result = run_episode(parallel_env(robots=7, max_cycles=40), ReynoldsPolicy(), seed=3)
+    last = result.recording.positions[-1]
+    want = max(np.hypot(*(p - last[0])) for p in last[1:])
+    assert result.metrics["final_leader_distance_max"] == pytest.approx(want, rel=1e-12)
+
+
+SHORT = {"robots": 7, "max_cycles": 60}
+
+
+def test_select_runs_the_suite_and_writes_its_choice(tmp_path):
+    suite = Suite("tiny", (Case("arena", "trained", "case", "arena", SHORT),
+                           Case("small_room", "trained", "case", "small_room",
+                                {**SHORT, "scene": "small_room"})), seeds=(100,))
+    ranked = select(["learned-scenes", "random"], tmp_path, suite=suite, bars=TWO,
+                    progress=False, workers=1)
+    assert set(ranked["policy"]) == {"learned-scenes", "random"}
+    results = pd.read_parquet(tmp_path / "results.parquet")
+    bars = pd.read_csv(tmp_path / "bars.csv")
+    for row in bars.itertuples():
+        mine = results[(results.policy == row.policy) & (results.case == row.case)]
+        ref = results[(results.policy == "reynolds[paper]") & (results.case == row.case)]
+        total = float((mine.V_sep + mine.V_coh + mine.V_align).mean())
+        assert row.value == pytest.approx(total)
+        factor = 0.5 if row.case == "arena" else 1.0
+        assert row.limit == pytest.approx(factor * float((ref.V_sep + ref.V_coh
+                                                          + ref.V_align).mean()))
+    choice = json.loads((tmp_path / "selection.json").read_text())
+    assert choice["chosen"] == ranked["spec"].iloc[0]
+    assert [b["case"] for b in choice["bars"]] == ["arena", "small_room"]
+
+
+def test_select_refuses_bad_input_before_writing(tmp_path, capsys):
+    out = tmp_path / "sel"
+    assert main(["select", "reynolds", "--out", str(out)]) == 2
+    assert "reference 'reynolds' is also a candidate" in capsys.readouterr().err
+    assert main(["select", "learned", "--seeds", "-1", "--out", str(out)]) == 2
+    assert "seeds must be" in capsys.readouterr().err
+    assert not out.exists()
