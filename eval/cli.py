@@ -328,7 +328,8 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                    help="preset of a bare 'reynolds' policy (paper)")
     p.add_argument("--suite", default="paper", help="paper (default), robustness, "
                    "generalisation (the learned policy's trained and unseen cases), scenes, "
-                   "deployment, person (a person leading: speed, group size, crowd), "
+                   "deployment, validation (trained cases on seeds 100-104, what boids select ranks on), "
+                   "person (a person leading: speed, group size, crowd), "
                    "robot_types (the study's experiment for every robot preset), or a TOML "
                    "file")
     seeds = p.add_mutually_exclusive_group()
