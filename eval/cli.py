@@ -328,7 +328,8 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                    help="preset of a bare 'reynolds' policy (paper)")
     p.add_argument("--suite", default="paper", help="paper (default), robustness, "
                    "generalisation (the learned policy's trained and unseen cases), scenes, "
-                   "deployment, validation (trained cases on seeds 100-104, what boids select ranks on), "
+                   "deployment, validation (trained cases on seeds 100-104, what boids select "
+                   "ranks on), "
                    "person (a person leading: speed, group size, crowd), "
                    "robot_types (the study's experiment for every robot preset), or a TOML "
                    "file")
@@ -439,8 +440,15 @@ def _cmd_select(args: argparse.Namespace) -> int:
     ranked = select(args.candidates, args.out, reference=args.reference,
                     workers=args.workers, seeds=args.seeds, trust=args.trust_model,
                     progress=not args.no_progress)
+    from boids_env.eval.select import per_run
+
     with pd.option_context("display.width", 200, "display.max_colwidth", 80):
-        print(ranked.drop(columns="spec").to_string(index=False))
+        print(ranked.drop(columns=["spec", "run"]).to_string(index=False))
+    chosen = per_run(ranked)
+    if len(chosen) > 1:  # candidates from several runs (seeds): each run's pick too
+        met = dict(zip(ranked["spec"], ranked["met"], strict=True))
+        for run, spec in chosen.items():
+            print(f"run {run}: {spec} ({met[spec]} bars)")
     print(f"chosen: {ranked['spec'].iloc[0]} ({ranked['met'].iloc[0]} of "
           f"{ranked['bars'].iloc[0]} bars); wrote bars.csv, ranking.csv, selection.json "
           f"to {args.out}")

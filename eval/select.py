@@ -113,13 +113,31 @@ def ranking(bars: pd.DataFrame) -> pd.DataFrame:
             .reset_index())
 
 
+def run_of(spec: str) -> str:
+    """The training run a candidate comes from: the folder holding ``checkpoints/`` for a
+    checkpoint, the zip's folder for another zip (``runs/x/seed_0/model.zip`` and
+    ``runs/x/seed_0/checkpoints/model_N_steps.zip`` are both ``runs/x/seed_0``), the name
+    itself for a named policy."""
+    path = Path(spec)
+    if path.suffix != ".zip":
+        return spec
+    return str(path.parent.parent if path.parent.name == "checkpoints" else path.parent)
+
+
+def per_run(ranked: pd.DataFrame) -> dict[str, str]:
+    """Each run's chosen candidate (its best-ranked ``spec``), runs in order of first rank."""
+    return {run: str(group["spec"].iloc[0])
+            for run, group in ranked.groupby("run", sort=False)}
+
+
 def select(candidates: Sequence[str], out: str | Path, *, reference: str = "reynolds",
            workers: int | None = None, seeds: Sequence[int] | None = None,
            trust: bool = False, progress: bool = True, suite: Any = None,
            bars: Sequence[Bar] = BARS) -> pd.DataFrame:
     """Runs ``suite`` (default: ``validation``) for ``reference`` and every candidate
     (resumable in ``out``), writes ``bars.csv``, ``ranking.csv`` and ``selection.json`` (the
-    chosen candidate first) there, and returns the ranking."""
+    chosen candidate overall, and each run's: :func:`run_of`) there, and returns the ranking
+    (with each candidate's ``run``)."""
     from boids_env.eval import folder
     from boids_env.eval.runner import PolicySpec, distinct_policies, run_suite
     from boids_env.eval.suites import VALIDATION
@@ -137,10 +155,12 @@ def select(candidates: Sequence[str], out: str | Path, *, reference: str = "reyn
     scored = bar_table(table, labelled[0].label, bars)
     ranked = ranking(scored)
     ranked.insert(1, "spec", [labels.get(p, p) for p in ranked["policy"]])
+    ranked.insert(2, "run", [run_of(spec) for spec in ranked["spec"]])
     out = Path(out)
     write_text(out / "bars.csv", scored.to_csv(index=False))
     write_text(out / "ranking.csv", ranked.to_csv(index=False))
-    choice: dict[str, Any] = {"chosen": ranked["spec"].iloc[0], "reference": reference,
+    choice: dict[str, Any] = {"chosen": ranked["spec"].iloc[0],
+                              "chosen_per_run": per_run(ranked), "reference": reference,
                               "seeds": list(suite.seeds),
                               "bars": [b.__dict__ | {"text": b.text} for b in bars],
                               "ranking": ranked.to_dict(orient="records")}

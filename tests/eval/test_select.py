@@ -9,7 +9,7 @@ import pytest
 
 from boids_env import parallel_env
 from boids_env.eval.episode import run_episode
-from boids_env.eval.select import BARS, Bar, bar_table, ranking, select
+from boids_env.eval.select import BARS, Bar, bar_table, per_run, ranking, run_of, select
 from boids_env.eval.suites import DEPLOYMENT, SCENES, VALIDATION, Case, Suite
 from boids_env.policies import ReynoldsPolicy
 from boids_env.train.cli import main
@@ -58,6 +58,22 @@ def test_safety_and_a_lost_follower_fail_a_bar_and_ties_go_to_the_lower_total():
     # every one meets one bar; summed totals: A 5.4, B 3.5, C 3.5, D 3.5 (kept in order)
     assert list(ranked["policy"]) == ["B", "C", "D", "A"]
     assert list(ranked["summed_total"]) == pytest.approx([3.5, 3.5, 3.5, 5.4])
+
+
+def test_each_run_gets_its_best_checkpoint():
+    assert run_of("runs/s/seed_0/checkpoints/model_250_steps.zip") == "runs/s/seed_0"
+    assert run_of("runs/s/seed_0/model.zip") == "runs/s/seed_0"
+    assert run_of("learned-scenes") == "learned-scenes"
+    specs = ["a/seed_0/checkpoints/m1.zip", "a/seed_0/model.zip", "a/seed_1/model.zip",
+             "a/seed_1/checkpoints/m1.zip"]
+    table = _table(("R", "arena", 2.0), ("R", "small_room", 4.0),
+                   (specs[0], "arena", 1.5), (specs[0], "small_room", 3.0),    # 1 bar
+                   (specs[1], "arena", 0.9), (specs[1], "small_room", 3.0),    # 2 bars
+                   (specs[2], "arena", 1.2), (specs[2], "small_room", 4.5),    # 0 bars
+                   (specs[3], "arena", 0.5), (specs[3], "small_room", 3.9))    # 2 bars
+    ranked = ranking(bar_table(table, "R", TWO)).rename(columns={"policy": "spec"})
+    ranked["run"] = [run_of(s) for s in ranked["spec"]]
+    assert per_run(ranked) == {"a/seed_1": specs[3], "a/seed_0": specs[1]}
 
 
 def test_a_metric_no_episode_has_meets_no_bar():
@@ -134,6 +150,7 @@ def test_select_runs_the_suite_and_writes_its_choice(tmp_path):
                                                           + ref.V_align).mean()))
     choice = json.loads((tmp_path / "selection.json").read_text())
     assert choice["chosen"] == ranked["spec"].iloc[0]
+    assert choice["chosen_per_run"] == {p: p for p in ranked["spec"]}  # names: runs of one
     assert [b["case"] for b in choice["bars"]] == ["arena", "small_room"]
 
 
