@@ -416,7 +416,9 @@ def _select_parser(sub: argparse._SubParsersAction) -> None:
                        "and prints the ranking: most bars met, then the lower summed total. "
                        "Writes bars.csv, ranking.csv and selection.json to --out.")
     p.add_argument("candidates", nargs="+", metavar="MODEL",
-                   help="model .zip files (checkpoints) or policy names to rank")
+                   help="model .zip files (checkpoints), policy names, or training folders "
+                   "(a run's --out: its checkpoints and model.zip; a --seeds output: every "
+                   "seed's) to rank")
     p.add_argument("--reference", default="reynolds",
                    help="the policy the relative bars compare against (reynolds)")
     p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)

@@ -8,6 +8,7 @@ can say exactly what was met."""
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -113,6 +114,45 @@ def ranking(bars: pd.DataFrame) -> pd.DataFrame:
             .reset_index())
 
 
+def _steps(path: Path) -> tuple[int, str]:
+    """``model_250000_steps.zip`` sorts by its step count, the name's last number (then by
+    name)."""
+    numbers = re.findall(r"\d+", path.stem)
+    return (int(numbers[-1]) if numbers else -1, path.name)
+
+
+def expand(candidates: Sequence[str]) -> list[str]:
+    """Candidates with every folder replaced by the models of the training runs in it: a run
+    folder (one holding ``model.zip`` or ``checkpoints/``) gives its checkpoints in step
+    order, then its ``model.zip``; another folder (a ``boids train --seeds`` output) gives
+    each run folder directly inside it so. Only plain files inside the folder count (no
+    symbolic links); a folder without any model is a ``ValueError``."""
+    out: list[str] = []
+    for candidate in candidates:
+        folder = Path(candidate)
+        if not folder.is_dir():
+            out.append(candidate)
+            continue
+        runs = [folder] if _is_run(folder) else sorted(
+            p for p in folder.iterdir() if p.is_dir() and not p.is_symlink() and _is_run(p))
+        found = []
+        for run in runs:
+            found += sorted((p for p in (run / "checkpoints").glob("*.zip")
+                             if p.is_file() and not p.is_symlink()), key=_steps)
+            final = run / "model.zip"
+            if final.is_file() and not final.is_symlink():
+                found.append(final)
+        if not found:
+            raise ValueError(f"candidate folder {candidate} holds no training run (model.zip "
+                             f"or checkpoints/*.zip, in it or in a folder directly inside)")
+        out += [str(p) for p in found]
+    return out
+
+
+def _is_run(folder: Path) -> bool:
+    return (folder / "model.zip").is_file() or (folder / "checkpoints").is_dir()
+
+
 def run_of(spec: str) -> str:
     """The training run a candidate comes from: the folder holding ``checkpoints/`` for a
     checkpoint, the zip's folder for another zip (``runs/x/seed_0/model.zip`` and
@@ -144,6 +184,7 @@ def select(candidates: Sequence[str], out: str | Path, *, reference: str = "reyn
 
     if not candidates:
         raise ValueError("candidates must name at least one model")
+    candidates = expand(candidates)
     if reference in candidates:
         raise ValueError(f"reference {reference!r} is also a candidate")
     specs = [PolicySpec.parse(reference), *(PolicySpec.parse(c, trust=trust)

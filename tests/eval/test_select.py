@@ -161,3 +161,26 @@ def test_select_refuses_bad_input_before_writing(tmp_path, capsys):
     assert main(["select", "learned", "--seeds", "-1", "--out", str(out)]) == 2
     assert "seeds must be" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_training_folder_stands_for_its_checkpoints_and_final_model(tmp_path):
+    from boids_env.eval.select import expand
+
+    for seed in (0, 1):
+        run = tmp_path / f"seed_{seed}"
+        (run / "checkpoints").mkdir(parents=True)
+        for steps in (1_000_000, 250_000, 500_000):
+            (run / "checkpoints" / f"model_{steps}_steps.zip").write_bytes(b"zip")
+        (run / "model.zip").write_bytes(b"zip")
+        (run / "tb").mkdir()
+    (tmp_path / "seed_1" / "checkpoints" / "linked.zip").symlink_to(tmp_path / "seed_0" /
+                                                                    "model.zip")
+    one = [f"{tmp_path}/seed_0/checkpoints/model_{n}_steps.zip"
+           for n in (250_000, 500_000, 1_000_000)] + [f"{tmp_path}/seed_0/model.zip"]
+    assert expand([str(tmp_path / "seed_0")]) == one
+    both = expand([str(tmp_path), "learned-scenes"])
+    assert both[:4] == one and both[-1] == "learned-scenes" and len(both) == 9
+    assert not any("linked" in p for p in both)  # a link may point outside the folder
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ValueError, match="holds no training run"):
+        expand([str(tmp_path / "empty")])
