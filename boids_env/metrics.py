@@ -449,10 +449,9 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
     out["steps"] = int(positions.shape[0])
     out["duration"] = float(positions.shape[0] * dt)
     out["polarization"] = float(polarization(velocities).mean())
-    out["mean_leader_distance"] = float(leader_distance(positions).mean())
-    out["final_leader_distance_max"] = (float(leader_distance(positions[-1:]).max())
-                                        if positions.shape[0] and positions.shape[1] > 1
-                                        else 0.0)
+    distances = leader_distance(positions)  # (T, N-1)
+    out["mean_leader_distance"] = float(distances.mean())
+    out["final_leader_distance_max"] = float(distances[-1].max()) if distances.size else 0.0
     pos = np.asarray(positions, dtype=float)
     sight = line_of_sight(pos, scene)
     safety = safety_metrics(pos, robot_radius, scene.within(pos, robot_radius,

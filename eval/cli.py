@@ -437,13 +437,11 @@ def _cmd_select(args: argparse.Namespace) -> int:
             purpose="boids select")
     import pandas as pd
 
-    from boids_env.eval.select import select
+    from boids_env.eval.select import per_run, select
 
     ranked = select(args.candidates, args.out, reference=args.reference,
                     workers=args.workers, seeds=args.seeds, trust=args.trust_model,
                     progress=not args.no_progress)
-    from boids_env.eval.select import per_run
-
     with pd.option_context("display.width", 200, "display.max_colwidth", 80):
         print(ranked.drop(columns=["spec", "run"]).to_string(index=False))
     chosen = per_run(ranked)

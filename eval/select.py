@@ -107,8 +107,8 @@ def ranking(bars: pd.DataFrame) -> pd.DataFrame:
     """Candidates ranked: most bars met, then the lower summed total (ties kept in order)."""
     out = bars.groupby("policy", sort=False).agg(met=("met", "sum"), bars=("met", "size"),
                                                   summed_total=("total", "sum"))
-    out["missed"] = [", ".join(bars[(bars["policy"] == p) & ~bars["met"]]["case"])
-                     for p in out.index]
+    missed = bars[~bars["met"]].groupby("policy", sort=False)["case"].agg(", ".join)
+    out["missed"] = missed.reindex(out.index, fill_value="")
     return (out.assign(_neg=-out["met"])
             .sort_values(["_neg", "summed_total"], kind="stable").drop(columns="_neg")
             .reset_index())
