@@ -412,8 +412,8 @@ def _select_parser(sub: argparse._SubParsersAction) -> None:
                        "policy and every candidate, scores each candidate on the bars (the "
                        "arena at most half the reference's total, each scene below it, 61 "
                        "robots' V_coh within 0.2 of it, parked speed <= 0.05 m/s; with wall "
-                       "contact and touching <= 1 %% and no follower beyond 3 m at the end) "
-                       "and prints the ranking: most bars met, then the lower summed total. "
+                       "contact and touching <= 1 % and no follower beyond 3 m at the end) "
+                       "and prints the ranking: most bars met, then --order. "
                        "Writes bars.csv, ranking.csv and selection.json to --out.")
     p.add_argument("candidates", nargs="+", metavar="MODEL",
                    help="model .zip files (checkpoints), policy names, or training folders "
@@ -424,6 +424,10 @@ def _select_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
     p.add_argument("--seeds", type=int, nargs="+", default=None, metavar="SEED",
                    help="validation episodes' seeds (100 101 102 103 104)")
+    p.add_argument("--order", choices=("total", "headroom"), default="total",
+                   help="tie-break among candidates meeting as many bars: total (the lower "
+                   "summed total, the default) or headroom (the larger smallest headroom, "
+                   "(limit - value) / limit over the bars, then the lower summed total)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
     p.add_argument("--out", default="runs/select", help="output folder (runs/select); "
                    "rerunning with the same candidates resumes there")
@@ -441,7 +445,7 @@ def _cmd_select(args: argparse.Namespace) -> int:
 
     ranked = select(args.candidates, args.out, reference=args.reference,
                     workers=args.workers, seeds=args.seeds, trust=args.trust_model,
-                    progress=not args.no_progress)
+                    progress=not args.no_progress, order=args.order)
     with pd.option_context("display.width", 200, "display.max_colwidth", 80):
         print(ranked.drop(columns=["spec", "run"]).to_string(index=False))
     chosen = per_run(ranked)

@@ -1,9 +1,10 @@
 """Choosing a checkpoint by bars (``boids select``): every candidate model and a reference
 policy run the ``validation`` suite, each candidate is scored on issue 26's bars for lab
 followers against the reference, and the candidates are ranked — most bars met first, then
-the lower summed total (V_sep + V_coh + V_align over the cases). A recipe that keeps its
-checkpoints names this rule before it trains; the rule is data (:data:`BARS`), so a report
-can say exactly what was met."""
+(:data:`ORDERS`) the lower summed total (V_sep + V_coh + V_align over the cases) or the
+larger headroom (how far the candidate's closest bar is below its limit). A recipe that keeps
+its checkpoints names this rule before it trains; the rule is data (:data:`BARS`), so a
+report can say exactly what was met."""
 
 from __future__ import annotations
 
@@ -60,6 +61,13 @@ BARS = (Bar("arena", "total", factor=0.5),
 reference's total, each scene below it, 61 robots' V_coh within 0.2 of it, and followers
 parked (mean speed ≤ 0.05 m/s after 5 s of standstill) around a standing leader."""
 
+ORDERS = ("total", "headroom")
+"""Tie-breaks among candidates meeting as many bars: ``total``, the lower summed total;
+``headroom``, the larger smallest headroom over the bars — a bar's headroom is
+``(limit - value) / limit``, so 0.05 means 5 % below the limit and a missed bar is negative —
+then the lower summed total. ``headroom`` prefers the candidate whose thinnest margin is the
+widest, the one likeliest to keep meeting every bar on other episodes."""
+
 SAFETY = (("wall_fraction", 0.01), ("touching_fraction", 0.01))
 """Every case also needs these episode means at most so (1 % of the time)."""
 FARTHEST = 3.0
@@ -96,21 +104,30 @@ def bar_table(table: pd.DataFrame, reference: str, bars: Sequence[Bar] = BARS
             farthest = float(runs["final_leader_distance_max"].max())
             met = (bar.met(value, ref) and all(safety[k] <= lim for k, lim in SAFETY)
                    and farthest <= FARTHEST)
+            limit = bar.limit(ref)
             rows.append({"policy": policy, "case": bar.case, "bar": bar.text,
-                         "value": value, "limit": bar.limit(ref), **safety,
+                         "value": value, "limit": limit,
+                         "headroom": (limit - value) / abs(limit) if limit else float("nan"),
+                         **safety,
                          "farthest": farthest, "total": float(runs["total"].mean()),
                          "met": met, "episodes": len(runs)})
     return pd.DataFrame(rows)
 
 
-def ranking(bars: pd.DataFrame) -> pd.DataFrame:
-    """Candidates ranked: most bars met, then the lower summed total (ties kept in order)."""
-    out = bars.groupby("policy", sort=False).agg(met=("met", "sum"), bars=("met", "size"),
-                                                  summed_total=("total", "sum"))
+def ranking(bars: pd.DataFrame, order: str = "total") -> pd.DataFrame:
+    """Candidates ranked: most bars met, then by ``order`` (:data:`ORDERS`; ties kept in
+    order). ``headroom`` is each candidate's smallest headroom over the bars (NaN, a metric
+    no episode has, counts as none: minus infinity)."""
+    if order not in ORDERS:
+        raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
+    out = bars.groupby("policy", sort=False).agg(
+        met=("met", "sum"), bars=("met", "size"), summed_total=("total", "sum"),
+        headroom=("headroom", lambda h: h.fillna(float("-inf")).min()))
     missed = bars[~bars["met"]].groupby("policy", sort=False)["case"].agg(", ".join)
     out["missed"] = missed.reindex(out.index, fill_value="")
-    return (out.assign(_neg=-out["met"])
-            .sort_values(["_neg", "summed_total"], kind="stable").drop(columns="_neg")
+    keys = ["_neg", "summed_total"] if order == "total" else ["_neg", "_room", "summed_total"]
+    return (out.assign(_neg=-out["met"], _room=-out["headroom"])
+            .sort_values(keys, kind="stable").drop(columns=["_neg", "_room"])
             .reset_index())
 
 
@@ -173,17 +190,19 @@ def per_run(ranked: pd.DataFrame) -> dict[str, str]:
 def select(candidates: Sequence[str], out: str | Path, *, reference: str = "reynolds",
            workers: int | None = None, seeds: Sequence[int] | None = None,
            trust: bool = False, progress: bool = True, suite: Any = None,
-           bars: Sequence[Bar] = BARS) -> pd.DataFrame:
+           bars: Sequence[Bar] = BARS, order: str = "total") -> pd.DataFrame:
     """Runs ``suite`` (default: ``validation``) for ``reference`` and every candidate
     (resumable in ``out``), writes ``bars.csv``, ``ranking.csv`` and ``selection.json`` (the
     chosen candidate overall, and each run's: :func:`run_of`) there, and returns the ranking
-    (with each candidate's ``run``)."""
+    (with each candidate's ``run``) by ``order`` (:data:`ORDERS`)."""
     from boids_env.eval import folder
     from boids_env.eval.runner import PolicySpec, distinct_policies, run_suite
     from boids_env.eval.suites import VALIDATION
 
     if not candidates:
         raise ValueError("candidates must name at least one model")
+    if order not in ORDERS:
+        raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
     candidates = expand(candidates)
     if reference in candidates:
         raise ValueError(f"reference {reference!r} is also a candidate")
@@ -194,7 +213,7 @@ def select(candidates: Sequence[str], out: str | Path, *, reference: str = "reyn
     labelled = distinct_policies(specs)  # the runner's labels (a path where stems repeat)
     labels = {s.label: s.spec for s in labelled}
     scored = bar_table(table, labelled[0].label, bars)
-    ranked = ranking(scored)
+    ranked = ranking(scored, order)
     ranked.insert(1, "spec", [labels.get(p, p) for p in ranked["policy"]])
     ranked.insert(2, "run", [run_of(spec) for spec in ranked["spec"]])
     out = Path(out)
@@ -202,7 +221,7 @@ def select(candidates: Sequence[str], out: str | Path, *, reference: str = "reyn
     write_text(out / "ranking.csv", ranked.to_csv(index=False))
     choice: dict[str, Any] = {"chosen": ranked["spec"].iloc[0],
                               "chosen_per_run": per_run(ranked), "reference": reference,
-                              "seeds": list(suite.seeds),
+                              "order": order, "seeds": list(suite.seeds),
                               "bars": [b.__dict__ | {"text": b.text} for b in bars],
                               "ranking": ranked.to_dict(orient="records")}
     write_text(out / "selection.json", json.dumps(choice, indent=1, default=float))

@@ -176,8 +176,8 @@ def _recipes():
 def test_the_recipes_are_the_documented_ones():
     assert _recipes() == ["ppo_person", "ppo_safe", "ppo_safe_stage2", "ppo_scenes",
                           "ppo_scenes_stage2", "ppo_scenes_stage3", "ppo_scenes_stage4",
-                          "ppo_scenes_stage5", "ppo_scenes_stage6", "ppo_study", "ppo_turtlebot",
-                          "ppo_turtlebot_stage2"]
+                          "ppo_scenes_stage5", "ppo_scenes_stage6", "ppo_scenes_stage7",
+                          "ppo_study", "ppo_turtlebot", "ppo_turtlebot_stage2"]
 
 
 @pytest.mark.parametrize("name", _recipes())
@@ -257,6 +257,18 @@ def test_scenes_recipes_keep_the_shipped_observations_and_stage2_adds_the_filter
         sixth, total_timesteps=fifth.total_timesteps, worlds=fifth.worlds,
         group_sizes=fifth.group_sizes, copies=fifth.copies, env_fields=fifth.env_fields,
         learning_rate=fifth.learning_rate, checkpoint_every=fifth.checkpoint_every) == fifth
+    # stage 7 (a pillar-field margin): stage 6 with two more pillar-field copies, 3 M steps
+    # from the shipped model (62.5 M), a checkpoint every 500 k steps
+    seventh = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage7"))
+    assert seventh.worlds[:20] == sixth.worlds
+    assert seventh.worlds[20:] == ({"scene": "pillars"},) * 2
+    assert seventh.group_sizes[:20] == sixth.group_sizes and seventh.group_sizes[20:] == (13, 19)
+    assert seventh.copies == 22 and seventh.checkpoint_every == 500_000
+    assert seventh.total_timesteps == 65_500_000
+    assert dataclasses.replace(
+        seventh, total_timesteps=sixth.total_timesteps, worlds=sixth.worlds,
+        group_sizes=sixth.group_sizes, copies=sixth.copies,
+        checkpoint_every=sixth.checkpoint_every) == sixth
 
 
 def test_learned_scenes_is_the_selected_stage6_model():

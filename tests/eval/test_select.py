@@ -9,7 +9,7 @@ import pytest
 
 from boids_env import parallel_env
 from boids_env.eval.episode import run_episode
-from boids_env.eval.select import BARS, Bar, bar_table, per_run, ranking, run_of, select
+from boids_env.eval.select import BARS, ORDERS, Bar, bar_table, per_run, ranking, run_of, select
 from boids_env.eval.suites import DEPLOYMENT, SCENES, VALIDATION, Case, Suite
 from boids_env.policies import ReynoldsPolicy
 from boids_env.train.cli import main
@@ -58,6 +58,36 @@ def test_safety_and_a_lost_follower_fail_a_bar_and_ties_go_to_the_lower_total():
     # every one meets one bar; summed totals: A 5.4, B 3.5, C 3.5, D 3.5 (kept in order)
     assert list(ranked["policy"]) == ["B", "C", "D", "A"]
     assert list(ranked["summed_total"]) == pytest.approx([3.5, 3.5, 3.5, 5.4])
+
+
+def test_headroom_prefers_the_widest_thinnest_margin():
+    # reference: arena 2.0 (limit 1.0), small_room 4.0 (limit 4.0, strict)
+    table = _table(("R", "arena", 2.0), ("R", "small_room", 4.0),
+                   ("A", "arena", 0.2), ("A", "small_room", 3.96),   # headroom 0.8 and 0.01
+                   ("B", "arena", 0.8), ("B", "small_room", 3.4),    # 0.2 and 0.15
+                   ("C", "arena", 0.9), ("C", "small_room", 3.0),    # 0.1 and 0.25
+                   ("D", "arena", 0.1), ("D", "small_room", 4.2))    # misses: 0.9, -0.05
+    bars = bar_table(table, "R", TWO)
+    room = {(r.policy, r.case): r.headroom for r in bars.itertuples()}
+    assert room[("A", "small_room")] == pytest.approx(0.01)
+    assert room[("B", "arena")] == pytest.approx(0.2)
+    assert room[("D", "small_room")] == pytest.approx(-0.05)
+    # summed totals A 4.16, B 4.2, C 3.9, D 4.3: the default order takes the lowest
+    assert list(ranking(bars)["policy"]) == ["C", "A", "B", "D"]
+    ranked = ranking(bars, "headroom")
+    assert list(ranked["policy"]) == ["B", "C", "A", "D"]   # D: fewer bars, still last
+    assert list(ranked["headroom"]) == pytest.approx([0.15, 0.1, 0.01, -0.05])
+    with pytest.raises(ValueError, match="order must be one of"):
+        ranking(bars, "margin")
+
+
+def test_a_bar_without_a_value_has_no_headroom():
+    table = _table(("R", "arena", 2.0), ("A", "arena", 0.5), ("B", "arena", 0.9))
+    bars = bar_table(table, "R", (Bar("arena", "parked_speed", absolute=0.05),
+                                  Bar("arena", "total", factor=0.5)))
+    ranked = ranking(bars, "headroom")
+    assert list(ranked["headroom"]) == [float("-inf")] * 2
+    assert list(ranked["policy"]) == ["A", "B"]  # then the lower summed total
 
 
 def test_each_run_gets_its_best_checkpoint():
@@ -160,6 +190,11 @@ def test_select_refuses_bad_input_before_writing(tmp_path, capsys):
     assert "reference 'reynolds' is also a candidate" in capsys.readouterr().err
     assert main(["select", "learned", "--seeds", "-1", "--out", str(out)]) == 2
     assert "seeds must be" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["select", "learned", "--order", "margin", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert "argument --order: invalid choice: 'margin'" in err
+    assert all(order in err for order in ORDERS)
     assert not out.exists()
 
 
