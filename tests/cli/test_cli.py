@@ -271,23 +271,24 @@ def test_scenes_recipes_keep_the_shipped_observations_and_stage2_adds_the_filter
         checkpoint_every=sixth.checkpoint_every) == sixth
 
 
-def test_learned_scenes_is_the_selected_stage6_model():
-    # stage 6 run from the stage-4 model for 3 M steps (seed 0), its checkpoint at 62.5 M
-    # picked by boids select: the recipe's env fields, the filter on
+def test_learned_scenes_is_the_selected_stage7_model():
+    # stage 7 run from the stage-6 pick (62.5 M steps) with seed 0, its checkpoint at 63.0 M
+    # picked by boids select --order headroom: the recipe's env fields, the filter on
     import zipfile
 
     from boids_env.policies.registry import MODELS, load_policy
     from boids_env.train.config import TrainConfig, resolve_recipe
 
     fields = load_policy("learned-scenes").env_fields
-    sixth = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage6"))
-    assert fields == sixth.env_fields and fields["safety_filter"] is True
+    seventh = TrainConfig.from_toml(resolve_recipe("ppo_scenes_stage7"))
+    assert fields == seventh.env_fields and fields["safety_filter"] is True
     with zipfile.ZipFile(MODELS["learned-scenes"]) as z:
         data = json.loads(z.read("data"))
         meta = json.loads(z.read("boids.json"))
-    assert data["num_timesteps"] == 62_517_444
+    assert data["num_timesteps"] == 63_016_932
     assert meta["train_config"]["learning_rate"] == 1e-4
-    assert meta["train_config"]["total_timesteps"] == 65_000_000
+    assert meta["train_config"]["total_timesteps"] == 65_500_000
+    assert len(meta["train_config"]["worlds"]) == 22
 
 
 def test_safety_filter_flag_reaches_the_env(tmp_path):
