@@ -28,9 +28,9 @@ PERSON_MODEL = Path(__file__).parent / "models" / "ppo_person.zip"
 trained on for 3 M steps with a walking person and the intrusion reward); acts in numpy."""
 SCENES_MODEL = Path(__file__).parent / "models" / "ppo_scenes.zip"
 """The shipped followers fine-tuned in scenes for a lab (recipe ``ppo_scenes``, its stages 2-4,
-then stage 6 with the checkpoint ``boids select`` picked): walls near the path, doorways,
-corridors, pillars, up to 61 robots, leaders who stand still, with the safety filter in the
-loop; its env fields switch the filter on."""
+then stages 6 and 7, each with the checkpoint ``boids select`` picked): walls near the path,
+doorways, corridors, pillars, up to 61 robots, leaders who stand still, with the safety filter
+in the loop; its env fields switch the filter on."""
 MODELS = {"learned": LEARNED_MODEL, "learned-study": STUDY_MODEL,
           "learned-person": PERSON_MODEL, "learned-scenes": SCENES_MODEL}
 
