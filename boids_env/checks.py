@@ -5,12 +5,62 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
 from typing import Any
+
+
+@dataclass(frozen=True)
+class Check:
+    """One range check as it was called: the documentation's source of every field's range
+    and unit (the reference pages record the checks a config's validation makes, so they
+    cannot drift from it)."""
+
+    name: str
+    kind: str
+    """``number``, ``integer`` or ``flag``."""
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    unit: str = ""
+
+    @property
+    def allowed(self) -> str:
+        """The allowed values as the error message states them (``(0.0, 1.0]``)."""
+        if self.kind == "flag":
+            return "True or False"
+        left, right = "(" if self.lo_open else "[", ")" if self.hi_open else "]"
+        return f"{left}{self.lo}, {self.hi}{right}"
+
+
+_RECORD: ContextVar[list[Check] | None] = ContextVar("boids_env_checks", default=None)
+
+
+@contextmanager
+def recorded() -> Iterator[list[Check]]:
+    """Records every check made inside the block, in call order, into the yielded list
+    (``with recorded() as checks: WorldConfig()``)."""
+    checks: list[Check] = []
+    token = _RECORD.set(checks)
+    try:
+        yield checks
+    finally:
+        _RECORD.reset(token)
+
+
+def _note(check: Check) -> None:
+    log = _RECORD.get()
+    if log is not None:
+        log.append(check)
 
 
 def number(name: str, value: Any, lo: float, hi: float, *, lo_open: bool = False,
            hi_open: bool = False, unit: str = "") -> float:
     """Checks that ``value`` is a real number in the given interval and returns it as float."""
+    _note(Check(name, "number", lo, hi, lo_open, hi_open, unit))
     left, right = "(" if lo_open else "[", ")" if hi_open else "]"
     allowed = f"{left}{lo}, {hi}{right}{(' ' + unit) if unit else ''}"
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
@@ -25,6 +75,7 @@ def number(name: str, value: Any, lo: float, hi: float, *, lo_open: bool = False
 
 def integer(name: str, value: Any, lo: int, hi: int) -> int:
     """Checks that ``value`` is an integer (numpy integers accepted) in [lo, hi]."""
+    _note(Check(name, "integer", lo, hi))
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
     if not lo <= int(value) <= hi:
@@ -34,6 +85,7 @@ def integer(name: str, value: Any, lo: int, hi: int) -> int:
 
 def flag(name: str, value: Any) -> bool:
     """Checks that ``value`` is True or False."""
+    _note(Check(name, "flag"))
     if not isinstance(value, bool):
         raise ValueError(f"{name} must be True or False, got {value!r}")
     return value

@@ -411,18 +411,25 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         headings: (T, N) measured headings (rad) of robots that have one.
 
     Returns:
-        ``V_sep``, ``V_coh``, ``V_align``, the per-follower ``count_*`` lists,
-        ``V_align_unwrapped`` and ``count_align_unwrapped`` (the study's unwrapped rule),
-        ``duration`` (T, s), ``steps``, ``min_distance`` (m), ``collisions``,
-        ``polarization`` (episode mean), ``mean_leader_distance`` (m),
-        ``final_leader_distance_max`` (the farthest any follower is from the leader at the
-        last sample, m: a follower left behind), the safety
-        metrics of :func:`safety_metrics` (``SAFETY_KEYS``), ``no_sight`` (each
-        follower's fraction of time without line of sight to the leader), when the
-        leader stood still for more than 5 s, :func:`parked_metrics`; for robots with a
-        heading also ``V_align_heading`` / ``count_align_heading`` (alignment on the measured
-        headings) and ``V_align_command`` (on the commands, the study's rule), whichever
-        ``alignment_source`` makes ``V_align``.
+        ``V_sep`` / ``V_coh`` / ``V_align``: the study's violation metrics, the followers'
+        summed violating time over the episode's duration (the module docstring's V_x);
+        ``count_sep`` / ``count_coh`` / ``count_align``: each follower's violating samples
+        (a list); ``V_align_unwrapped`` / ``count_align_unwrapped``: alignment by the study's
+        unwrapped rule; ``steps``: the samples T; ``duration``: T · dt (s);
+        ``min_distance``: the smallest centre distance between two robots (m);
+        ``collisions``: contact onsets, follower-follower and leader-follower;
+        ``polarization``: the episode mean of |mean unit velocity| of the moving robots;
+        ``mean_leader_distance``: the followers' mean distance to the leader (m);
+        ``final_leader_distance_max``: the farthest any follower is from the leader at the
+        last sample (m: a follower left behind); ``no_sight``: each follower's fraction of
+        time without line of sight to the leader (a list); the safety metrics of
+        :func:`safety_metrics` (``SAFETY_KEYS``); when the leader stood still for more than
+        5 s, :func:`parked_metrics`; with a person leading, the proxemics of
+        :func:`boids_env.proxemics.person_metrics`; with a crowd,
+        :func:`boids_env.proxemics.crowd_metrics`; for robots with a heading
+        ``V_align_heading`` / ``count_align_heading``: alignment on the measured headings;
+        ``V_align_command``: alignment on the commands (the study's rule). ``V_align`` is
+        the one ``alignment_source`` names.
     """
     if scene is None:
         from boids_env.world.scenes import arena
