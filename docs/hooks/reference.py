@@ -21,6 +21,7 @@ import itertools
 import re
 import textwrap
 from collections.abc import Callable, Iterable
+from pathlib import Path
 from typing import Any
 
 PAGES: dict[str, Callable[[], str]] = {}
@@ -47,16 +48,20 @@ def prose(text: str | None) -> str:
     return " ".join(text.split())
 
 
+_CODE_SPAN = re.compile(r"(``.+?``|`[^`]+`)")
+
+
 def cell(text: str) -> str:
-    """Text safe in a Markdown table cell: pipes escaped, no raw HTML."""
-    return text.replace("|", "\\|").replace("<", "&lt;").replace("\n", " ") or "—"
+    """Text safe in a Markdown table cell: pipes outside code spans escaped (the table
+    extension leaves those inside alone), no raw HTML."""
+    parts = _CODE_SPAN.split(text.replace("\n", " "))
+    return "".join(part if i % 2 else part.replace("|", "\\|").replace("<", "&lt;")
+                   for i, part in enumerate(parts)) or "—"
 
 
 def code(text: str) -> str:
-    """A code span (with a pipe escaped, which the table extension honours inside code)."""
-    tick = "``" if "`" in text else "`"
-    pad = " " if "`" in text else ""
-    return f"{tick}{pad}{text}{pad}{tick}".replace("|", "\\|")
+    """A code span of ``text``."""
+    return f"`` {text} ``" if "`" in text else f"`{text}`"
 
 
 def table(header: Iterable[str], rows: Iterable[Iterable[str]]) -> str:
@@ -438,7 +443,41 @@ def metrics_page() -> str:
     return "".join(parts)
 
 
-# --------------------------------------------------------------------------- MkDocs hook
+# --------------------------------------------------------------------------- MkDocs hooks
+API_SOURCE = Path("build", "api-src")
+"""Where :func:`on_config` lays out the package as it installs (``mkdocstrings``' ``paths``)."""
+
+
+def api_source(root: Path) -> Path:
+    """The import tree of ``boids_env`` as it installs, copied (its ``.py`` files) under
+    ``root/API_SOURCE``: the folders that pyproject's ``package-dir`` maps into it
+    (``policies/`` as ``boids_env.policies``, ...) beside the core's own modules, so that
+    mkdocstrings (griffe, which follows neither the mapping nor links) finds every
+    sub-package by its import name."""
+    import shutil
+    import tomllib
+
+    mapping = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-dir"]
+    out = root / API_SOURCE
+    shutil.rmtree(out, ignore_errors=True)
+
+    def python_only(folder: str, names: list[str]) -> list[str]:
+        return [n for n in names if n == "__pycache__"
+                or (not n.endswith(".py") and not (Path(folder) / n).is_dir())]
+
+    for name, folder in sorted(mapping.items()):  # the core first, then its sub-packages
+        shutil.copytree(root / folder, out.joinpath(*name.split(".")), ignore=python_only,
+                        dirs_exist_ok=True)
+    return out
+
+
+def on_config(config: Any) -> Any:
+    """Lays out the import tree for mkdocstrings before any page renders."""
+    api_source(Path(config.config_file_path).parent)
+    return config
+
+
 def on_files(files: Any, config: Any) -> Any:
     """Adds every generated page to the site (MkDocs 1.6's generated files)."""
     from mkdocs.structure.files import File
