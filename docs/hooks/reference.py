@@ -488,3 +488,13 @@ def on_files(files: Any, config: Any) -> Any:
             files.remove(existing)
         files.append(File.generated(config, path, content=generate()))
     return files
+
+
+_HTML_ROLE = re.compile(r":(?:mod|func|class|meth|data|attr|obj|exc):<code>(~?)([^<]*)</code>")
+
+
+def on_page_content(html: str, **kwargs: Any) -> str:
+    """The docstrings' reST roles (``:func:`x` ``), which mkdocstrings' Markdown leaves as
+    text, as plain code spans (``~a.b.c`` as ``c``)."""
+    return _HTML_ROLE.sub(lambda m: "<code>" + (m[2].rsplit(".", 1)[-1] if m[1] else m[2])
+                          + "</code>", html)

@@ -169,3 +169,11 @@ def test_every_metric_an_episode_reports_is_on_the_page_with_a_meaning(reference
             "person_contacts", "pedestrian_contacts"} <= set(rows)
     for key, line in rows.items():
         assert not line.rstrip().endswith("| — |"), f"{key} has no description"
+
+
+def test_rest_roles_in_docstrings_render_as_code(reference):
+    html = ("<p>See :func:<code>~boids_env.metrics.safety_metrics</code> and "
+            ":mod:<code>boids_env.world.robots</code>; keep a:b:<code>c</code>.</p>")
+    assert reference.on_page_content(html) == (
+        "<p>See <code>safety_metrics</code> and <code>boids_env.world.robots</code>; keep "
+        "a:b:<code>c</code>.</p>")

@@ -129,7 +129,9 @@ def test_the_site_builds_strictly_and_offline(tmp_path):
     for page in ("reference/config.html", "reference/cli.html", "reference/observations.html",
                  "reference/metrics.html", "reference/api.html", "how-to/run.html"):
         assert (site / page).is_file(), page
-    assert "BoidsEnv" in (site / "reference/api.html").read_text()
+    api = (site / "reference/api.html").read_text()
+    assert "BoidsEnv" in api and "ReynoldsPolicy" in api and "run_suite" in api
+    assert not re.search(r":(mod|func|class|data|meth|attr):<code", api)  # reST roles shown
     assert (site / "search" / "search_index.js").is_file()  # the offline search's index
     online = []
     for html in site.rglob("*.html"):
