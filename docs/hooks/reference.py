@@ -305,15 +305,15 @@ OBSERVATION_CASES: tuple[tuple[str, dict[str, Any]], ...] = (
 """The configs whose layouts the observation page shows: the default and one per opt-in."""
 
 
-def _bounds(values: Any, width: int) -> str:
-    """A block's bounds: one slot's when every slot has the same."""
+def _bounds(values: Any, width: int, unit: str = "slot") -> str:
+    """A block's bounds: one slot's (ray's) when every slot has the same."""
     import numpy as np
 
     rows = np.asarray(values, dtype=float).reshape(-1, width)
-    same = bool((rows == rows[0]).all())
+    if not (rows == rows[0]).all():
+        return "[" + ", ".join(f"{v:g}" for v in rows.ravel()) + "]"
     text = "[" + ", ".join(f"{v:g}" for v in rows[0]) + "]"
-    return text + (" per slot" if same and len(rows) > 1 else "") if same else \
-        "[" + ", ".join(f"{v:g}" for v in rows.ravel()) + "]"
+    return text + (f" per {unit}" if len(rows) > 1 else "")
 
 
 def observation_layouts() -> list[tuple[str, dict[str, Any], Any, Any]]:
@@ -338,7 +338,11 @@ def observations_page() -> str:
              "Policies read blocks by name (`ObservationLayout.block(name)`), never by index. "
              "The layouts and bounds below are generated from the env for the default config "
              "and for each opt-in sensor; the bounds are those of the env's observation "
-             "`Box`.\n\n"]
+             "`Box`, and follow the config: velocities ±`velocity_bound`, neighbours' relative "
+             "positions ±`horizon`, the leader's relative position ± the scene's span "
+             "(2·`arena_half_size` in the arena), static slots ±`static_range`, pedestrian "
+             "slots ±`pedestrian_range`, rays up to `lidar_range` (see the "
+             "[configuration reference](config.md#observationconfig)).\n\n"]
     # the module docstring's paragraphs after its reST table (neighbours, frames)
     parts += [prose(p) + "\n\n" for p in observations.__doc__.split("\n\n")[2:]
               if "===" not in p]
@@ -349,8 +353,10 @@ def observations_page() -> str:
         for name, size in layout.blocks:
             block = layout.block(name)
             width = SLOT_WIDTH.get(name, size)
+            unit = "ray" if name == "lidar" else "slot"
             rows.append((code(name), f"{block.start}–{block.stop - 1}", str(size),
-                         _bounds(space.low[block], width), _bounds(space.high[block], width),
+                         _bounds(space.low[block], width, unit),
+                         _bounds(space.high[block], width, unit),
                          cell(BLOCK_MEANINGS[name])))
         parts.append(table(("block", "indices", "size", "low", "high", "meaning"), rows) + "\n")
     return "".join(parts)

@@ -28,7 +28,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 PYTHON = {"python", "py", "python3"}
 SHELL = {"bash", "console", "sh", "shell"}
-COMMAND_TIMEOUT = 300
+COMMAND_TIMEOUT = 120
 """Seconds one documented shell command may take."""
 
 _FENCE = re.compile(r"^(?P<indent>[ \t]*)(?P<fence>`{3,}|~{3,})[ \t]*(?P<info>[^`\n]*)$")
