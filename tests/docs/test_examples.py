@@ -2,8 +2,8 @@
 
 The convention (every page of ``docs/`` and ``README.md``):
 
-- every fenced ``python`` block runs; a page's blocks run in order in one namespace, in a
-  fresh temporary folder, with ``SDL_VIDEODRIVER=dummy``;
+- every fenced ``python`` block runs; a page's blocks run in order in one namespace (as
+  ``__main__``), in a fresh temporary folder, with ``SDL_VIDEODRIVER=dummy``;
 - a block whose previous non-blank line is ``<!-- docs-test: skip (reason) -->`` does not run;
   the reason is mandatory;
 - ``bash`` / ``console`` / ``sh`` / ``shell`` blocks do not run, unless preceded by
@@ -139,10 +139,11 @@ def run_page(path: Path, tmp: Path) -> int:
     ``AssertionError`` naming the page and line of the first that fails."""
     rel = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
     blocks = parse(path.read_text(encoding="utf-8"), str(rel))
-    namespace: dict[str, object] = {"__name__": "__docs__"}
+    namespace: dict[str, object] = {"__name__": "__main__"}  # as a reader runs it
     ran = 0
-    cwd = Path.cwd()
+    cwd, video = Path.cwd(), os.environ.get("SDL_VIDEODRIVER")
     os.chdir(tmp)
+    os.environ["SDL_VIDEODRIVER"] = "dummy"
     try:
         for block in blocks:
             if block.marker == "skip":
@@ -159,6 +160,10 @@ def run_page(path: Path, tmp: Path) -> int:
                 ran += 1
     finally:
         os.chdir(cwd)
+        if video is None:
+            os.environ.pop("SDL_VIDEODRIVER", None)
+        else:
+            os.environ["SDL_VIDEODRIVER"] = video
     return ran
 
 
