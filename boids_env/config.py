@@ -672,8 +672,11 @@ class ReynoldsParams:
     """Parameters of the Reynolds + leader controller (DESIGN section 3)."""
 
     separation_weight: float = 1.0
+    """Weight of the separation term (paper: 1.0)."""
     cohesion_weight: float = 1.0
+    """Weight of the cohesion term (paper: 1.0)."""
     alignment_weight: float = 1.0
+    """Weight of the alignment term (paper: 1.0)."""
     leader_weight: float = 1.0
     """Weight of the leader-following term. Study: 1.0, 1.1, 1.2."""
     horizon: float = 1.0

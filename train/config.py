@@ -48,7 +48,9 @@ class TrainConfig:
     algorithm: str = "ppo"
     """``ppo`` (default) or ``sac``."""
     total_timesteps: int = 12_000_000
+    """Follower-steps to train for in all."""
     seed: int = 0
+    """Seed of the learner and of the env copies' episodes."""
     group_sizes: tuple[int, ...] = (7, 13, 19)
     """Group sizes (leader included) of the env copies, assigned round robin."""
     copies: int = 6
@@ -86,31 +88,48 @@ class TrainConfig:
     """Other env config fields by flat name (e.g. ``{"neighbours": 6}``)."""
     # Hyperparameters shared by both algorithms.
     learning_rate: float = 3e-4
+    """Learning rate of the optimiser (Adam)."""
     gamma: float = 0.99
+    """Discount factor."""
     batch_size: int = 4608
+    """Minibatch size (follower-steps) of each gradient step."""
     net_arch: tuple[int, ...] = (64, 64)
+    """Hidden layer widths of the actor and of the critic (each its own network)."""
     log_std_init: float = -1.5
+    """Initial log standard deviation of the Gaussian policy's actions."""
     resume_log_std: float | None = None
     """With ``--resume``: set the policy's log action std to this before training on (PPO;
     None keeps the checkpoint's). A converged policy acts with a std of about 0.04 m/s and
     explores too little to find what a changed reward asks for (README, learned followers)."""
     # PPO.
     n_steps: int = 256
+    """PPO: steps each VecEnv slot (a follower) collects per rollout."""
     n_epochs: int = 5
+    """PPO: passes over each rollout."""
     gae_lambda: float = 0.95
+    """PPO: λ of the generalised advantage estimate."""
     clip_range: float = 0.2
+    """PPO: clipping range of the probability ratio."""
     ent_coef: float = 0.0
+    """PPO: weight of the entropy bonus."""
     # SAC.
     buffer_size: int = 1_000_000
+    """SAC: replay buffer size (transitions)."""
     learning_starts: int = 20_000
+    """SAC: follower-steps collected before the first update."""
     train_freq: int = 1
+    """SAC: steps of each VecEnv slot between updates."""
     gradient_steps: int = 1
+    """SAC: gradient steps per update."""
     tau: float = 0.005
+    """SAC: soft update coefficient of the target networks."""
     # Logging, evaluation, checkpoints (in timesteps).
     eval_every: int = 1_000_000
+    """Follower-steps between evaluations on ``eval_seeds`` (0: none)."""
     eval_seeds: tuple[int, ...] = (100, 101)
     """Seeds of the evaluation episodes (default case: 13 robots, 0.55 m/s)."""
     checkpoint_every: int = 2_000_000
+    """Follower-steps between checkpoints (0: none)."""
 
     def __post_init__(self) -> None:
         if self.algorithm not in ALGORITHMS:

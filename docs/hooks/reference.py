@@ -43,9 +43,9 @@ def prose(text: str | None) -> str:
     """A docstring as Markdown on one line: reST roles become code spans, whitespace folds."""
     if not text:
         return ""
-    text = _ROLE.sub(lambda m: "`" + (m[1].rsplit(".", 1)[-1] if "~" in m[0] else m[1]) + "`",
-                     text)
-    return " ".join(text.split())
+    text = " ".join(text.split())
+    return _ROLE.sub(lambda m: "`" + (m[1].rsplit(".", 1)[-1] if "~" in m[0] else m[1])
+                     .replace(" ", "") + "`", text)
 
 
 _CODE_SPAN = re.compile(r"(``.+?``|`[^`]+`)")

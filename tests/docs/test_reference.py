@@ -100,7 +100,10 @@ def test_a_field_row_gives_its_type_default_range_and_unit(config_page, section,
 def test_a_field_row_carries_its_docstring(config_page):
     assert config_page["worldconfig"]["dt"][4] == ("Control period (s): 10 Hz, as the original "
                                                    "controller and simulator.")
-    assert config_page["trainconfig"]["learning_rate"][4] == "—"  # no docstring in the code
+    undocumented = [f"{section}.{name}" for section, rows in config_page.items()
+                    for name, row in rows.items() if row[4] == "—"]
+    assert not undocumented, f"fields without a docstring: {undocumented}"
+    assert config_page["safetyconfig"]["safety_filter"][4].startswith("Filter every")
 
 
 # ------------------------------------------------------------------ CLI page
@@ -172,6 +175,8 @@ def test_every_metric_an_episode_reports_is_on_the_page_with_a_meaning(reference
 
 
 def test_rest_roles_in_docstrings_render_as_code(reference):
+    assert reference.prose("The filter (:mod:`~boids_env.world.\n    safety`), :func:`f`.") == \
+        "The filter (`safety`), `f`."
     html = ("<p>See :func:<code>~boids_env.metrics.safety_metrics</code> and "
             ":mod:<code>boids_env.world.robots</code>; keep a:b:<code>c</code>.</p>")
     assert reference.on_page_content(html) == (
