@@ -7,8 +7,10 @@ from the ``boids`` argparse parser, the observation page from the observation la
 env's observation space, the metrics page from what :func:`boids_env.metrics.episode_metrics`
 returns and the docstrings that name each key.
 
-MkDocs runs :func:`on_files` (``hooks:`` in ``mkdocs.yml``); the tests import the generators
-directly (``tests/docs``), so they run without MkDocs installed.
+MkDocs runs the hooks here (``hooks:`` in ``mkdocs.yml``): :func:`on_config` lays out the
+import tree for mkdocstrings, :func:`on_files` adds the generated pages, :func:`on_page_content`
+shows the docstrings' reST roles as code. The tests import the generators directly
+(``tests/docs``), so they run without MkDocs installed.
 """
 
 from __future__ import annotations
@@ -192,7 +194,9 @@ def config_page() -> str:
              "its default, the allowed range and unit its validation enforces (a value "
              "outside it raises `ValueError` naming the field, the value and the range), and "
              "its docstring. A range of — means the field has no numeric range (its "
-             "docstring says what it takes).\n"]
+             "docstring says what it takes). Ranges are those a default config enforces; a "
+             "bound that depends on another field (`processes` ≤ `copies`) is shown at that "
+             "field's default.\n"]
     for title, cls, how in config_sections():
         anchor = cls.__name__.lower()
         parts.append(f"\n## {title} {{#{anchor}}}\n\n{prose(cls.__doc__)}\n\n{_HOW[how]}\n\n")
