@@ -26,6 +26,12 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+try:  # the tests import the generators without the docs extra
+    from mkdocs.plugins import event_priority
+except ImportError:  # pragma: no cover - only without mkdocs
+    def event_priority(priority: float) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+        return lambda fn: fn
+
 PAGES: dict[str, Callable[[], str]] = {}
 """Generated page path (under ``docs/``) -> its generator."""
 
@@ -482,8 +488,10 @@ def api_source(root: Path) -> Path:
     return out
 
 
+@event_priority(100)  # before mkdocstrings' own on_config, which looks for its ``paths``
 def on_config(config: Any) -> Any:
-    """Lays out the import tree for mkdocstrings before any page renders."""
+    """Lays out the import tree for mkdocstrings before any page renders (and before
+    mkdocstrings checks its ``paths``: on a fresh clone the folder does not exist yet)."""
     api_source(Path(config.config_file_path).parent)
     return config
 
