@@ -195,14 +195,7 @@ def _run_command(command: str, cwd: Path, where: str) -> None:
 def _page_params() -> list[object]:
     params: list[object] = []
     for path in pages():
-        marks = []
-        if path.name == "README.md" and len(path.read_text().splitlines()) > 2000:
-            # the 2,700-line README of before the site: its fragments (lines 498, 750) do not
-            # run on their own; the short README that replaces it must pass (strict: this
-            # mark then fails, and goes)
-            marks.append(pytest.mark.xfail(strict=True, reason="the pre-site README's "
-                                           "fragments; remove with the short README"))
-        params.append(pytest.param(path, id=str(path.relative_to(ROOT)), marks=marks))
+        params.append(pytest.param(path, id=str(path.relative_to(ROOT))))
     return params
 
 

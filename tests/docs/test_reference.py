@@ -63,10 +63,13 @@ def test_every_config_section_is_on_the_page(config_page):
     assert set(config_page) == {cls.__name__.lower() for cls in classes}
 
 
-@pytest.mark.parametrize("cls", [WorldConfig, RealismConfig, SafetyConfig, ReynoldsParams,
-                                 TrainConfig, *{type(getattr(EnvConfig(), f.name))
-                                                for f in dataclasses.fields(EnvConfig)}],
-                         ids=lambda c: c.__name__)
+# one id each, in a fixed order (pytest-xdist's workers must collect the same list)
+_SECTIONS = {cls.__name__: cls for cls in (
+    WorldConfig, RealismConfig, SafetyConfig, ReynoldsParams, TrainConfig,
+    *(type(getattr(EnvConfig(), f.name)) for f in dataclasses.fields(EnvConfig)))}
+
+
+@pytest.mark.parametrize("cls", list(_SECTIONS.values()), ids=list(_SECTIONS))
 def test_the_config_page_lists_every_field_in_order(config_page, cls):
     assert list(config_page[cls.__name__.lower()]) == [f.name for f in dataclasses.fields(cls)]
 

@@ -107,9 +107,6 @@ def test_the_generated_pages_are_not_committed_as_text(reference):
     assert not [p for p in reference.PAGES if (DOCS / p).exists()]
 
 
-@pytest.mark.xfail(len((ROOT / "README.md").read_text().splitlines()) > 2000, strict=True,
-                   reason="the 2,700-line README of before the site; its short successor "
-                          "must pass (strict: this mark then fails, and goes)")
 def test_the_readme_is_short():
     lines = len((ROOT / "README.md").read_text(encoding="utf-8").splitlines())
     assert lines <= README_LINES, f"README.md has {lines} lines, more than {README_LINES}: " \
