@@ -2,8 +2,8 @@
 
 Prints (and writes, with ``--out``) a JSON object: for each episode, the SHA-256 of every
 position and command (16 hex digits, as ``tests/env/test_golden.py`` pins them) and its
-metrics. Run it on two machines and compare the files: the README says which figures are
-exact on every CPU; this checks it on yours.
+metrics. Run it on two machines and compare the files: the docs (explanation/guarantees)
+say which figures are exact on every CPU; this checks it on yours.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """Frozen, validated configuration of the environment and of the Reynolds controller.
 
 Every default is a number from the study (Akgun, "Development of Leader Following, Boids Inspired
-Algorithm Using ROS") unless its docstring says otherwise; the README lists them.
+Algorithm Using ROS") unless its docstring says otherwise; the docs' configuration reference
+lists them.
 Bad values raise ``ValueError`` naming the field, the value and the allowed range.
 """
 

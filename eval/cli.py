@@ -21,7 +21,7 @@ MAX_FAST = 1000.0
 TRUST_HELP = ("load a model .zip through Stable-Baselines3's own load, which unpickles "
               "objects stored in the file and so runs any code they carry: only for files you "
               "trust. Without it a zip acts from its weights alone or is refused (see the "
-              "README, 'Model files you did not make')")
+              "docs, how-to/training, 'Model files you did not make')")
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros or reynolds@proxemic (a preset), "
                "random, learned (the shipped PPO followers), learned-study (PPO on the study's "
                "reward alone), learned-person (PPO following a person), learned-scenes (the "
@@ -119,12 +119,12 @@ def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) ->
     p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
     p.add_argument("--realism", choices=REALISMS, default=None,
                    help="ROS/Stage realism: none (the ideal world, default) or ros (stall, "
-                   "staggered start, stale observations; see the README)")
+                   "staggered start, stale observations; docs: explanation/fidelity)")
     p.add_argument("--no-wrap", action="store_true",
                    help="the study's unwrapped alignment angle rule")
     p.add_argument("--safety-filter", action="store_true",
                    help="filter every follower's command so that it does not drive the robot "
-                   "into a wall, obstacle or robot (opt-in; see the README)")
+                   "into a wall, obstacle or robot (opt-in; docs: how-to/maps)")
 
 
 def _run_parser(sub: argparse._SubParsersAction) -> None:
@@ -341,10 +341,10 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                        "reproduction (findings per block, mean and range)")
     p.add_argument("--realism", choices=REALISMS, default=None,
                    help="ROS/Stage realism in every case: none (the ideal world, default) or "
-                   "ros (stall, staggered start, stale observations; see the README)")
+                   "ros (stall, staggered start, stale observations; docs: explanation/fidelity)")
     p.add_argument("--safety-filter", action="store_true",
                    help="the safety filter between the policies and the robots in every case "
-                   "(opt-in; see the README)")
+                   "(opt-in; docs: how-to/maps)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
     p.add_argument("--backend", choices=BACKENDS, default="process",
                    help="process (isolated worker processes, default), ray, or inline (in "

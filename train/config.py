@@ -100,7 +100,8 @@ class TrainConfig:
     resume_log_std: float | None = None
     """With ``--resume``: set the policy's log action std to this before training on (PPO;
     None keeps the checkpoint's). A converged policy acts with a std of about 0.04 m/s and
-    explores too little to find what a changed reward asks for (README, learned followers)."""
+    explores too little to find what a changed reward asks for (docs:
+    explanation/learned-followers)."""
     # PPO.
     n_steps: int = 256
     """PPO: steps each VecEnv slot (a follower) collects per rollout."""

@@ -22,7 +22,7 @@ seed, so a run stays deterministic per seed.
   (probability a follower's new command is lost and the previous one executed again).
 
 ``realism="ros"`` switches on the combination that reproduced the study best in our
-measurements (see the README); explicit fields override the preset's values.
+measurements (docs: explanation/fidelity); explicit fields override the preset's values.
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ OFF: dict[str, Any] = {"stall": False, "stall_margin": 0.0, "command_noise": 0.0
 PRESETS: dict[str, dict[str, Any]] = {
     "none": OFF,
     # Stage's stall, staggered node start-up and unsynchronised pose topics: the best of the
-    # combinations scored on 16 blocks of 5 seeds, confirmed on 8 held-out blocks (README).
+    # combinations scored on 16 blocks of 5 seeds, confirmed on 8 held-out blocks (docs:
+    # explanation/fidelity).
     # Timing jitter is left out: it turned the followers' commands about ±180° on the
     # westward legs at 7 robots, where the study's alignment counts show no such spread.
     "ros": {**OFF, "stall": True, "stall_margin": 0.1, "start_jitter": 2.0,

@@ -81,7 +81,8 @@ heading's Taylor polynomial is exact to rounding up to it."""
 
 @dataclass(frozen=True)
 class RobotPreset:
-    """A real robot's published figures, as env config fields (see the README for sources)."""
+    """A real robot's published figures, as env config fields (the docs' robots page cites the
+    sources)."""
 
     robot_radius: float
     """Radius (m) of the disc that collides (a non-round robot: its circumscribed circle)."""

@@ -14,7 +14,7 @@ FloatArray = npt.NDArray[np.float64]
 
 WALKS = {"doorway_walk": Path(__file__).parent / "data" / "doorway_walk.csv"}
 """Walks shipped with the package, by name (recorded with the pedestrian model: see the
-README)."""
+docs, how-to/people)."""
 WALK_MAX_BYTES = 10_000_000
 """A walk file larger than this (10 MB) is refused."""
 WALK_MAX_ROWS = 200_000
