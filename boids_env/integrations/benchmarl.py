@@ -5,13 +5,14 @@ study's case). Needs ``pip install 'boids-env[benchmarl]'`` (BenchMARL 1.5 wants
 
 Every follower is one agent of the group ``follower``; actions are continuous (the commanded
 velocity), observations the env's, and each step's reward terms arrive under
-``("follower", "info")``. BenchMARL's other tasks read a YAML file of their own; this one takes
-its config as a dict (``get_task()`` without one is the study's case).
+``("follower", "info")``. The ``k``-th env the task's env function makes is seeded with
+``seed + k``, so the copies BenchMARL collects from run different episodes. BenchMARL's other
+tasks read a YAML file of their own; this one takes its config as a dict (``get_task()``
+without one is the study's case).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 from benchmarl.environments.common import Task, TaskClass
@@ -25,14 +26,10 @@ class BoidsTaskClass(TaskClass):
     """BenchMARL's :class:`TaskClass` for :class:`BoidsEnv`; ``config`` is env fields."""
 
     def get_env_fun(self, num_envs: int, continuous_actions: bool, seed: int | None,
-                    device: Any) -> Callable[[], EnvBase]:
+                    device: Any) -> _EnvMaker:
         config = dict(self.config)
         BoidsEnv(**config)  # a bad field fails here, before BenchMARL builds anything
-
-        def make() -> EnvBase:
-            return PettingZooWrapper(BoidsEnv(**config), return_state=False, use_mask=False,
-                                     categorical_actions=False, seed=seed, device=device)
-        return make
+        return _EnvMaker(config, seed, device)
 
     def supports_continuous_actions(self) -> bool:
         return True
@@ -68,6 +65,25 @@ class BoidsTaskClass(TaskClass):
     @staticmethod
     def env_name() -> str:
         return "boids"
+
+
+class _EnvMaker:
+    """The env function of :meth:`BoidsTaskClass.get_env_fun`: its ``k``-th env (from 0) is
+    seeded with ``seed + k``. BenchMARL calls one function for every copy of its ``SerialEnv``
+    with the same seed; seeded alike, every copy would start the same episode (the SuperSuit
+    pitfall). With ``parallel_collection=True`` each worker process counts from its own copy
+    of this function, so the copies would share seeds again: keep the default serial collection.
+    """
+
+    def __init__(self, config: dict[str, Any], seed: int | None, device: Any) -> None:
+        self.config, self.seed, self.device = config, seed, device
+        self.made = 0
+
+    def __call__(self) -> EnvBase:
+        seed = None if self.seed is None else self.seed + self.made
+        self.made += 1
+        return PettingZooWrapper(BoidsEnv(**self.config), return_state=False, use_mask=False,
+                                 categorical_actions=False, seed=seed, device=self.device)
 
 
 def _only(env: EnvBase, key: str) -> Composite:

@@ -9,6 +9,7 @@ pytest.importorskip("benchmarl")
 from benchmarl.algorithms import MappoConfig
 from benchmarl.experiment import Experiment, ExperimentConfig
 from benchmarl.models.mlp import MlpConfig
+from torchrl.envs import SerialEnv
 
 from boids_env import parallel_env
 from boids_env.integrations.benchmarl import BoidsTask
@@ -64,3 +65,31 @@ def test_mappo_runs_one_iteration_on_the_task(tmp_path):
     after = list(experiment.policy.parameters())
     assert any(not np.array_equal(a.detach().numpy(), b.numpy()) for a, b in zip(after, before,
                                                                                  strict=True))
+
+
+def _first_observations(seed):
+    task = BoidsTask.LEADER_FOLLOWING.get_task(config={"robots": 3, "max_cycles": 20})
+    env = SerialEnv(3, task.get_env_fun(num_envs=3, continuous_actions=True, seed=seed,
+                                        device="cpu"))
+    return env.reset()["follower", "observation"].numpy()
+
+
+def _second_episode_start(seed):
+    """The first observations of the env seeded with ``seed`` at its second reset (TorchRL's
+    wrapper resets with the seed when it is made; the batch's reset is the second)."""
+    env = parallel_env(robots=3, max_cycles=20)
+    env.reset(seed=seed)
+    obs, _ = env.reset()
+    return np.stack([obs[a] for a in env.possible_agents])
+
+
+def test_the_copies_benchmarl_collects_from_start_different_episodes_reproducibly():
+    obs = _first_observations(4)
+    assert not np.array_equal(obs[0], obs[1]) and not np.array_equal(obs[1], obs[2])
+    np.testing.assert_array_equal(obs, _first_observations(4))
+    # each copy runs the episodes of its own seed, 4 + k for the k-th env made (TorchRL's
+    # batch makes one more env than its copies, for the specs)
+    starts = {seed: _second_episode_start(seed) for seed in range(4, 8)}
+    seeds = [[s for s, row in starts.items() if np.array_equal(obs[k], row)] for k in range(3)]
+    assert all(len(found) == 1 for found in seeds), seeds
+    assert len({found[0] for found in seeds}) == 3, seeds
