@@ -8,3 +8,9 @@
 
 The Gymnasium id ``boids_env/SingleFollower-v0`` needs no glue: ``import boids_env`` registers it.
 """
+
+
+def missing_extra(module: str, extra: str, exc: ImportError) -> ImportError:
+    """The error a glue module raises when its library is not installed: which extra brings it."""
+    return ImportError(f"boids_env.integrations.{module} needs {exc.name or 'its library'}: "
+                       f"pip install 'boids-env[{extra}]'")

@@ -15,11 +15,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from benchmarl.environments.common import Task, TaskClass
-from torchrl.data import Composite
-from torchrl.envs import EnvBase, PettingZooWrapper
-
 from boids_env.environment import BoidsEnv
+from boids_env.integrations import missing_extra
+
+try:
+    from benchmarl.environments.common import Task, TaskClass
+    from torchrl.data import Composite
+    from torchrl.envs import EnvBase, PettingZooWrapper
+except ImportError as exc:
+    raise missing_extra("benchmarl", "benchmarl", exc) from exc
 
 
 class BoidsTaskClass(TaskClass):

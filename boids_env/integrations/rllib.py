@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from boids_env.environment import BoidsEnv
+from boids_env.integrations import missing_extra
 
 DEFAULT_NAME = "boids_leader_v0"
 """The name :func:`register` uses unless told another (PettingZoo's module name)."""
@@ -24,8 +25,10 @@ POLICY = "follower"
 def make_env(env_config: Mapping[str, Any] | None = None, **fields: Any) -> Any:
     """RLlib's ``ParallelPettingZooEnv`` over a :class:`BoidsEnv` with ``fields`` updated by
     ``env_config``; RLlib's own keys of an ``EnvContext`` (worker index ...) are not in it."""
-    from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
-
+    try:
+        from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+    except ImportError as exc:
+        raise missing_extra("rllib", "rllib", exc) from exc
     return ParallelPettingZooEnv(BoidsEnv(**{**fields, **dict(env_config or {})}))
 
 
@@ -36,8 +39,11 @@ def register(name: str = DEFAULT_NAME, **fields: Any) -> str:
     if not isinstance(name, str) or not name:
         raise TypeError(f"name must be a non-empty str, got {name!r}")
     BoidsEnv(**fields)
-    from ray.tune.registry import register_env
-
+    try:
+        import ray.rllib  # noqa: F401  (ray without its rllib extra has no RLlib)
+        from ray.tune.registry import register_env
+    except ImportError as exc:
+        raise missing_extra("rllib", "rllib", exc) from exc
     register_env(name, _Creator(fields))
     return name
 

@@ -22,10 +22,15 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import supersuit
-from supersuit.vector.sb3_vector_wrapper import SB3VecEnvWrapper
 
 from boids_env.environment import BoidsEnv
+from boids_env.integrations import missing_extra
+
+try:
+    import supersuit
+    from supersuit.vector.sb3_vector_wrapper import SB3VecEnvWrapper
+except ImportError as exc:  # SuperSuit's SB3 wrapper imports stable_baselines3
+    raise missing_extra("supersuit", "clients,train", exc) from exc
 
 
 class SeededVecEnv(SB3VecEnvWrapper):
