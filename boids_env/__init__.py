@@ -9,6 +9,12 @@ The names below are imported on first use (PEP 562), not with the package: every
 ``boids`` command lives under this package, so importing it is the first thing the command
 does, before it can catch a Ctrl-C; the env's imports (numpy, scipy, pymunk: about 0.6 s) now
 run inside the command, which answers a Ctrl-C with one line instead of a traceback.
+
+Importing the package registers the Gymnasium id ``boids_env/SingleFollower-v0``
+(:class:`boids_env.single.SingleFollowerEnv`) by its entry-point string, so ``gym.make`` and
+``gym.make_vec`` find it; that imports gymnasium (and numpy, about 0.1 s), not the env. The glue
+for other libraries (SuperSuit + SB3, RLlib, BenchMARL) is in :mod:`boids_env.integrations`,
+imported only when asked.
 """
 
 from __future__ import annotations
@@ -53,6 +59,21 @@ __all__ = [
     "raw_env",
     "reynolds_params",
 ]
+
+
+GYMNASIUM_IDS = {"boids_env/SingleFollower-v0": "boids_env.single:SingleFollowerEnv"}
+"""The Gymnasium ids this package registers on import, and their entry points."""
+
+
+def _register_gymnasium_ids() -> None:
+    import gymnasium
+
+    for env_id, entry_point in GYMNASIUM_IDS.items():
+        if env_id not in gymnasium.registry:  # importlib.reload registers once
+            gymnasium.register(id=env_id, entry_point=entry_point)
+
+
+_register_gymnasium_ids()
 
 
 def __getattr__(name: str) -> Any:
