@@ -171,10 +171,11 @@ def test_every_module_the_core_imports_is_declared():
 
 
 @pytest.mark.slow
-def test_a_fresh_venv_with_the_render_extra_runs_the_scenes(wheel, tmp_path):
+def test_a_fresh_venv_with_the_render_extra_runs_the_scenes_and_my_map(wheel, tmp_path):
     """The README's first install (the render extra) and nothing else: the built-in scenes,
-    ``lab`` (a ROS map) among them. Installs from the package index (about a minute with
-    pip's cache)."""
+    ``lab`` (a ROS map) among them, and a user's own map as ``map_saver -f /abs/path`` saves
+    it (an absolute image path). Installs from the package index (about a minute with pip's
+    cache)."""
     venv = tmp_path / "venv"
     _run([sys.executable, "-m", "venv", str(venv)], tmp_path, os.environ)
     _run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", f"{wheel}[render]"],
@@ -186,3 +187,13 @@ def test_a_fresh_venv_with_the_render_extra_runs_the_scenes(wheel, tmp_path):
     _run([boids, "run", "--scene", "lab", "--seed", "0", "--max-cycles", "20", "--out", "lab"],
          tmp_path, env)
     assert json.loads((tmp_path / "lab" / "metrics.json").read_text())["steps"] == 20
+    mine = tmp_path / "maps"
+    mine.mkdir()
+    shipped = ROOT / "boids_env" / "world" / "data"
+    (mine / "office.pgm").write_bytes((shipped / "lab.pgm").read_bytes())
+    (mine / "office.yaml").write_text((shipped / "lab.yaml").read_text().replace(
+        "image: lab.pgm", f"image: {mine / 'office.pgm'}"))
+    _run([boids, "run", "--map", str(mine / "office.yaml"), "--start=-3.5,-2.5",
+          "--waypoints", "-3.5,2 0.5,2", "--seed", "0", "--max-cycles", "20", "--out", "mine"],
+         tmp_path, env)
+    assert json.loads((tmp_path / "mine" / "metrics.json").read_text())["steps"] == 20

@@ -67,6 +67,33 @@ def test_a_symlink_out_of_the_folder_is_refused(tmp_path):
         maps.load_map(_map(inner, [[0]], image="link.pgm"))
 
 
+def test_an_absolute_image_inside_the_folder_is_read_as_map_saver_writes_it(tmp_path):
+    # map_saver -f /abs/path/office writes image: /abs/path/office.pgm
+    pixels = [[0, 254, 205], [100, 80, 254]]
+    relative = maps.read_occupancy(maps.read_map_yaml(_map(tmp_path, pixels)))
+    path = _map(tmp_path, pixels, image=str(tmp_path / "m.pgm"))
+    assert maps.read_map_yaml(path)["image"] == (tmp_path / "m.pgm").resolve()
+    assert maps.read_occupancy(maps.read_map_yaml(path)).tolist() == relative.tolist()
+    # the same map reached through a symlinked folder, its image named through the link
+    (tmp_path / "real").mkdir()
+    linked = tmp_path / "link"
+    os.symlink(tmp_path / "real", linked)
+    path = _map(linked, pixels, image=str(linked / "m.pgm"))
+    assert maps.read_occupancy(maps.read_map_yaml(path)).tolist() == relative.tolist()
+
+
+def test_an_absolute_image_outside_the_folder_says_why_and_how_to_fix_it(tmp_path):
+    inner = tmp_path / "inner"
+    inner.mkdir()
+    _map(tmp_path, [[0]])
+    with pytest.raises(ValueError, match=r"outside the map's folder .*move the image beside "
+                       r"the YAML and make image: relative, e\.g\. image: m\.pgm"):
+        maps.load_map(_map(inner, [[0]], image=str(tmp_path / "m.pgm")))
+    os.symlink(tmp_path / "m.pgm", inner / "link.pgm")  # absolute, inside, but a link out
+    with pytest.raises(ValueError, match="outside the map's folder"):
+        maps.load_map(_map(inner, [[0]], image=str(inner / "link.pgm")))
+
+
 def test_yaml_objects_and_huge_images_are_refused_before_decoding(tmp_path, monkeypatch):
     path = _map(tmp_path, [[0, 0], [0, 0]])
     path.write_text(path.read_text() + "\nx: !!python/object/apply:os.system ['touch pwned']\n")
