@@ -394,7 +394,8 @@ class EnvConfig:
     def replace(self, **kwargs: Any) -> EnvConfig:
         """Returns a copy with the named flat fields changed (validated). Choosing a
         ``scene`` (or ``map``, the same field) also sets the scenario fields it defines (its
-        leader path and start) unless they are given too."""
+        leader path and start) unless they are given too; ``waypoints`` without ``path``
+        sets ``path="waypoints"``."""
         if "map" in kwargs:
             if "scene" in kwargs:
                 raise TypeError("give the scene or the map, not both (map=PATH is scene=PATH)")
@@ -403,6 +404,8 @@ class EnvConfig:
         if unknown:
             raise TypeError(f"unknown config field(s) {unknown}; valid fields: "
                             f"{sorted(FIELD_OWNER)}")
+        if "path" not in kwargs and _has_items(kwargs.get("waypoints", ())):
+            kwargs["path"] = "waypoints"  # as boids run --waypoints: targets mean that path
         if "scene" in kwargs:
             kwargs = {**_scene_defaults(kwargs["scene"], kwargs.get(
                 "arena_half_size", self.world.arena_half_size)), **kwargs}
@@ -468,6 +471,15 @@ DEFAULT_PEDESTRIAN_SLOTS = 4
 """Pedestrian slots in the observations with a crowd (``pedestrian_slots``)."""
 DEFAULT_STATIC_SLOTS = 4
 """Static slots in the observations of any scene but the study's arena (``static_slots``)."""
+
+
+def _has_items(value: Any) -> bool:
+    """Whether ``value`` is a non-empty sequence, or not a sequence at all (the field's own
+    check then names it)."""
+    try:
+        return len(value) > 0
+    except TypeError:
+        return True
 
 
 def _scene_defaults(spec: Any, arena_half_size: Any) -> dict[str, Any]:

@@ -184,3 +184,23 @@ def test_the_lab_scene_runs_clear_of_its_walls():
     result = run_episode(parallel_env(scene="lab"), ReynoldsPolicy(), seed=1)
     assert result.metrics["wall_fraction"] == 0.0
     assert result.metrics["min_clearance"] > 0.1
+
+
+def test_waypoints_in_python_set_the_waypoints_path_as_the_cli_does(tmp_path):
+    """``parallel_env(map=..., waypoints=[...])`` drives the waypoints (as ``boids run
+    --waypoints`` does), not the map's default square (which here runs into the wall)."""
+    yaml = _my_room(tmp_path)
+    env = parallel_env(map=str(yaml), robots=4, start=(1.5, 2.0), start_heading=0.0,
+                       waypoints=[(2.5, 2.0), (2.5, 3.0)])
+    assert env.config.scenario.path == "waypoints"
+    assert env.config.scenario.waypoints == ((2.5, 2.0), (2.5, 3.0))
+    env.reset(seed=0)
+    for _ in range(30):  # past the 2 s start-up
+        env.step({a: np.zeros(2) for a in env.agents})
+    x, y = env.snapshot().positions[0]
+    assert 1.5 < x < 2.6 and y == pytest.approx(2.0, abs=1e-6), "east, to the first waypoint"
+    assert EnvConfig.from_kwargs(waypoints=[(1.0, 0.0)]).scenario.path == "waypoints"
+    # a path given stays; no waypoints (the default) leave the study's square
+    assert EnvConfig.from_kwargs(path="circle", waypoints=[(1.0, 0.0)]).scenario.path == "circle"
+    assert EnvConfig.from_kwargs(waypoints=()) == EnvConfig()
+    assert EnvConfig().replace(robots=13) == EnvConfig()
