@@ -96,9 +96,11 @@ def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) ->
                    help="a ROS map_server map (YAML + PGM/PNG) as the scene")
     p.add_argument("--path", choices=PATHS, default=None, help=path_help)
     p.add_argument("--waypoints", type=parse_waypoints, default=None,
-                   help='targets for --path waypoints, "x,y x,y ..." in metres (world frame)')
+                   help='targets of the leader, "x,y x,y ..." in metres (world frame; e.g. '
+                   '"0,4 -4,4" or --waypoints=-4,4); implies --path waypoints')
     p.add_argument("--start", type=parse_point, default=None, metavar="X,Y",
-                   help="where the leader starts (m; the scene's, or 0,0)")
+                   help="where the leader starts (m; the scene's, or 0,0); the arena is "
+                   "centred on 0,0: --start -3,0 or --start=-3,0")
     p.add_argument("--start-heading", type=float, default=None, metavar="DEG",
                    help="direction the leader faces at the start; the grid lies behind it")
     p.add_argument("--leader", choices=LEADERS, default=None,

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 import signal
 import sys
 import threading
@@ -170,11 +171,42 @@ def _cmd_curves(args: argparse.Namespace) -> int:
     return 0
 
 
+NEGATIVE_PAIR = re.compile(r"-\.?\d[^,\s]*,")
+"""A value such as ``-3,0`` or ``-4,4 0,0`` (x,y pairs in metres): argparse would read it as
+an option, since it starts with ``-`` and is no plain negative number."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` that takes x,y values starting with a minus sign after an option
+    (``--start -3,0``, ``--waypoints -4,4``) as ``--start=-3,0``: argparse alone reads
+    ``-3,0`` as an unknown option and stops with "expected one argument". Subparsers are built
+    of the same class."""
+
+    def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                         namespace: argparse.Namespace | None = None) -> Any:
+        return super().parse_known_args(join_negative_pairs(
+            sys.argv[1:] if args is None else list(args)), namespace)
+
+
+def join_negative_pairs(args: list[str]) -> list[str]:
+    """``["--start", "-3,0"]`` -> ``["--start=-3,0"]``; everything else unchanged (an option
+    that takes no value then refuses the joined one by name, as it refused ``-3,0``)."""
+    out: list[str] = []
+    for arg in args:
+        prev = out[-1] if out else ""
+        if ("--" not in out and NEGATIVE_PAIR.match(arg) and prev.startswith("-")
+                and "=" not in prev and not NEGATIVE_PAIR.match(prev)):
+            out[-1] = f"{prev}={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
     from boids_env import __version__
     from boids_env.eval import cli as eval_cli
 
-    parser = argparse.ArgumentParser(prog="boids", description="boids-env: leader-following "
+    parser = Parser(prog="boids", description="boids-env: leader-following "
                                      "boids flock (Akgun's ROS study) as a PettingZoo env")
     parser.add_argument("--version", action="version", version=f"boids-env {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
