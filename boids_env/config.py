@@ -416,6 +416,8 @@ class EnvConfig:
             changes.setdefault(FIELD_OWNER[name], {})[name] = value
         sections = {sec: dataclasses.replace(getattr(self, sec), **chg)
                     for sec, chg in changes.items()}
+        if "start" in kwargs and "scenario" in sections:
+            _check_walk_start(kwargs["start"], sections["scenario"])
         return dataclasses.replace(self, **sections)
 
     @property
@@ -471,6 +473,21 @@ DEFAULT_PEDESTRIAN_SLOTS = 4
 """Pedestrian slots in the observations with a crowd (``pedestrian_slots``)."""
 DEFAULT_STATIC_SLOTS = 4
 """Static slots in the observations of any scene but the study's arena (``static_slots``)."""
+
+
+def _check_walk_start(given: Any, sc: ScenarioConfig) -> None:
+    """A recorded walk starts at its first row: a ``start`` elsewhere would be ignored, so it
+    is refused (the walk's own start, as a saved config holds it, is accepted)."""
+    try:
+        same = tuple(map(float, given)) == sc.start
+    except (TypeError, ValueError):
+        same = False
+    if sc.leader == "trajectory" and not same:
+        raise ValueError(
+            f"start {tuple(given)} cannot be given with leader='trajectory': the walk "
+            f"{sc.leader_trajectory} fixes the start at its first row ({sc.start[0]:g}, "
+            f"{sc.start[1]:g}); drop start (boids run: --start), or record a walk that starts "
+            f"where you want")
 
 
 def _has_items(value: Any) -> bool:
@@ -626,6 +643,19 @@ def _check_fits(config: EnvConfig) -> None:
             f"robot_radius and arrival_margin)")
 
 
+def _start_advice(sc: ScenarioConfig, k: int) -> str:
+    """What to change when robot ``k`` starts too close to the scene (a walk fixes the
+    leader's start: only the grid behind it can move)."""
+    grid = f"layout_spacing ({sc.layout_spacing:g} m) or robots ({sc.robots})"
+    if sc.leader != "trajectory":
+        return f"change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, {grid}"
+    if k == 0:
+        return (f"the walk {sc.leader_trajectory} starts there (it fixes the start): use a "
+                f"walk that starts in free space or another scene")
+    return (f"the walk {sc.leader_trajectory} fixes the start ({sc.start[0]:g}, "
+            f"{sc.start[1]:g}): change start_heading (the grid lies behind it), {grid}")
+
+
 def _check_scene(config: EnvConfig) -> None:
     """The start layout and the leader's path checked against the scene: every robot starts
     more than its radius plus the jitter from static geometry, and every leg of the path
@@ -651,8 +681,7 @@ def _check_scene(config: EnvConfig) -> None:
             f"the start does not fit scene {scene.name!r}: {who} would start at "
             f"({cells[k][0]:.2f}, {cells[k][1]:.2f}), {max(clear[k], 0.0):.3f} m from "
             f"{scene.nearest_name(cells[k])}; it needs more than {need[k]:.3f} m ({rule}): "
-            f"change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, "
-            f"layout_spacing ({sc.layout_spacing:g} m) or robots ({sc.robots})")
+            f"{_start_advice(sc, k)}")
     if path is None:
         return
     blocked, which = scene.blocked(path[:-1], path[1:], w.robot_radius)

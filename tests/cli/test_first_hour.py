@@ -3,6 +3,8 @@ flags that cannot go together, help for every option."""
 
 import json
 
+import pytest
+
 from boids_env.train.cli import build_parser, main
 
 
@@ -25,3 +27,32 @@ def test_negative_coordinates_are_values_not_options(tmp_path):
 def test_the_help_shows_how_to_give_a_negative_start():
     text = build_parser()._subparsers._group_actions[0].choices["run"].format_help()
     assert "--start=-3,0" in " ".join(text.split())
+
+
+def test_a_start_with_a_recorded_walk_is_refused_before_any_work(tmp_path, capsys):
+    """The walk fixes the leader's start (its first row, here (-4, 0)): a --start beside it
+    would be ignored, so it is refused, saying why."""
+    walk = ["run", "--scene", "doorway", "--leader-trajectory", "doorway_walk",
+            "--robots", "4", "--max-cycles", "5"]
+    assert main([*walk, "--start=-3,0", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "the walk doorway_walk fixes the start at its first row (-4, 0)" in err, err
+    assert "drop start" in err and "--start" in err, err
+    assert not (tmp_path / "o").exists()
+    assert main([*walk, "--set", "start=[-3, 0]", "--out", str(tmp_path / "o")]) == 2
+    assert main([*walk, "--out", str(tmp_path / "ok")]) == 0
+    saved = json.loads((tmp_path / "ok" / "config.json").read_text())["env"]["scenario"]
+    assert saved["start"] == [-4.0, 0.0]
+
+
+def test_a_walk_whose_grid_does_not_fit_is_not_told_to_change_the_start():
+    from boids_env.config import EnvConfig
+
+    with pytest.raises(ValueError, match=r"the walk doorway_walk fixes the start \(-4, 0\): "
+                       r"change start_heading") as info:
+        EnvConfig.from_kwargs(scene="doorway", leader_trajectory="doorway_walk",
+                              leader="trajectory", robots=40)
+    assert "change start (" not in str(info.value)
+    config = EnvConfig.from_kwargs(scene="doorway", leader_trajectory="doorway_walk",
+                                   leader="trajectory")
+    assert EnvConfig.from_dict(config.to_dict()) == config, "a saved config holds the start"
