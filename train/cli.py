@@ -156,8 +156,9 @@ def _cmd_curves(args: argparse.Namespace) -> int:
         path = Path(where if eq else spec)
         csv = path / "evaluations.csv" if path.is_dir() else path
         if not csv.is_file():
-            raise FileNotFoundError(f"no evaluations.csv in {path} (a boids train output "
-                                    f"folder with --eval-every > 0)")
+            raise FileNotFoundError(f"no evaluations.csv in {path}: give a boids train "
+                                    f"output folder (a training with --eval-every 0 "
+                                    f"evaluates nothing)")
         try:
             table = pd.read_csv(csv)
         except (ValueError, UnicodeDecodeError) as exc:
