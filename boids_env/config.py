@@ -402,8 +402,7 @@ class EnvConfig:
             kwargs = {("scene" if k == "map" else k): v for k, v in kwargs.items()}
         unknown = sorted(set(kwargs) - set(FIELD_OWNER))
         if unknown:
-            raise TypeError(f"unknown config field(s) {unknown}; valid fields: "
-                            f"{sorted(FIELD_OWNER)}")
+            raise TypeError(f"unknown config field(s) {unknown}; {_close_fields(unknown)}")
         if "path" not in kwargs and _has_items(kwargs.get("waypoints", ())):
             kwargs["path"] = "waypoints"  # as boids run --waypoints: targets mean that path
         if "scene" in kwargs:
@@ -473,6 +472,18 @@ DEFAULT_PEDESTRIAN_SLOTS = 4
 """Pedestrian slots in the observations with a crowd (``pedestrian_slots``)."""
 DEFAULT_STATIC_SLOTS = 4
 """Static slots in the observations of any scene but the study's arena (``static_slots``)."""
+
+
+def _close_fields(unknown: list[str]) -> str:
+    """"did you mean ..." with the fields close to the unknown names (difflib), or every
+    field when none is close."""
+    import difflib
+
+    close = {name: difflib.get_close_matches(name, FIELD_OWNER, n=3) for name in unknown}
+    if not any(close.values()):
+        return f"valid fields: {sorted(FIELD_OWNER)}"
+    return "; ".join(f"{name}: did you mean {' or '.join(found)}?" if found else
+                     f"{name}: no field is close" for name, found in close.items())
 
 
 def _check_walk_start(given: Any, sc: ScenarioConfig) -> None:

@@ -546,7 +546,9 @@ def _ros_sim_parser(sub: argparse._SubParsersAction) -> None:
                    help="also hold tick 0 until NODE (e.g. /recorder) subscribes to every "
                    "topic of the graph; repeatable")
     p.add_argument("--out", default=None, help="output folder (none: print only)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true",
+                   help="print nothing but errors (no waiting notes, metrics table or "
+                   "written-files line)")
     p.add_argument("ros_args", nargs="*", help=ROS_ARGS_HELP)
     p.set_defaults(func=_cmd_ros_sim)
 
@@ -595,7 +597,9 @@ def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-ticks", type=int, default=None,
                    help="exit after answering this many ticks")
     p.add_argument("--no-markers", action="store_true", help="do not publish ~markers")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true",
+                   help="print nothing but errors (no start line, waiting or new-episode "
+                   "notes)")
     p.add_argument("ros_args", nargs="*", help=ROS_ARGS_HELP)
     p.set_defaults(func=_cmd_ros_controller)
 

@@ -32,10 +32,13 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace an earlier training in --out (only what it wrote, as listed in "
                    "its manifest.json; your own files there are kept)")
-    p.add_argument("--algorithm", choices=("ppo", "sac"), default=None)
+    p.add_argument("--algorithm", choices=("ppo", "sac"), default=None,
+                   help="Stable-Baselines3 algorithm (ppo)")
     p.add_argument("--timesteps", type=int, default=None, dest="total_timesteps",
                    help="follower-steps in all (PPO rounds up to whole rollouts)")
-    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--seed", type=int, default=None,
+                   help="seed of the env copies, the policy's initial weights and its "
+                   "sampling (0)")
     p.add_argument("--seeds", type=int, nargs="+", default=None, metavar="N",
                    help="train these seeds, each in --out/seed_N, as separate processes (or "
                    "Ray tasks with --backend ray), then write --out/seeds.csv and seeds.md; "
@@ -52,9 +55,15 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
                    help="learner threads (0: the cores the env workers leave)")
     p.add_argument("--device", choices=("cpu", "cuda", "auto"), default=None,
                    help="where the policy updates run (cpu)")
-    p.add_argument("--group-sizes", type=int, nargs="+", default=None)
-    p.add_argument("--leader-speeds", type=float, nargs="+", default=None)
-    p.add_argument("--eval-every", type=int, default=None, help="timesteps (0: never)")
+    p.add_argument("--group-sizes", type=int, nargs="+", default=None, metavar="N",
+                   help="group sizes (leader included) of the env copies, assigned round "
+                   "robin (7 13 19)")
+    p.add_argument("--leader-speeds", type=float, nargs="+", default=None, metavar="M/S",
+                   help="each training episode draws its leader speed from these "
+                   "(0.5 0.55 0.6)")
+    p.add_argument("--eval-every", type=int, default=None,
+                   help="evaluate the model every this many follower-steps, and the final "
+                   "model at the end, into evaluations.csv (the recipe's, else 1000000; 0: never)")
     p.add_argument("--checkpoint-every", type=int, default=None, help="timesteps (0: never)")
     p.add_argument("--resume", default=None, help="checkpoint zip to continue from, up to "
                    "--timesteps in all (more than it has); goes on in the --out of the "
@@ -138,7 +147,7 @@ def _curves_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--reference", type=float, default=None,
                    help="a total to draw as a dashed line (e.g. Reynolds' on the default "
                    "case)")
-    p.add_argument("--title", default="learning curves")
+    p.add_argument("--title", default="learning curves", help="the figure's title")
     p.set_defaults(func=_cmd_curves)
 
 
@@ -171,6 +180,19 @@ def _cmd_curves(args: argparse.Namespace) -> int:
     print(f"wrote {out} and {out.with_suffix('.svg')}")
     return 0
 
+
+EXAMPLES = """\
+examples:
+  boids run --seed 0 --video                 the study's flock, its metrics and a GIF
+  boids run --scene lab --policy learned-scenes
+  boids run --map my_map.yaml --start=-3,0 --waypoints "-3,3 2,3"
+  boids scenes                               the built-in scenes
+  boids eval --policy reynolds --policy learned --out runs/eval
+  boids train --config ppo_safe --timesteps 200000 --out runs/train
+  boids curves runs/train
+
+boids COMMAND --help describes each command's options."""
+"""Shown under ``boids --help``."""
 
 NEGATIVE_PAIR = re.compile(r"-\.?\d[^,\s]*,")
 """A value such as ``-3,0`` or ``-4,4 0,0`` (x,y pairs in metres): argparse would read it as
@@ -208,7 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
     from boids_env.eval import cli as eval_cli
 
     parser = Parser(prog="boids", description="boids-env: leader-following "
-                                     "boids flock (Akgun's ROS study) as a PettingZoo env")
+                    "boids flock (Akgun's ROS study) as a PettingZoo env",
+                    epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"boids-env {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     eval_cli.add_commands(sub)

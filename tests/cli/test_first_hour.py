@@ -56,3 +56,53 @@ def test_a_walk_whose_grid_does_not_fit_is_not_told_to_change_the_start():
     config = EnvConfig.from_kwargs(scene="doorway", leader_trajectory="doorway_walk",
                                    leader="trajectory")
     assert EnvConfig.from_dict(config.to_dict()) == config, "a saved config holds the start"
+
+
+def _parsers(parser, name="boids"):
+    """Every parser of the command, nested subcommands included, by its command line."""
+    import argparse
+
+    yield name, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            listed = {a.dest: a.help for a in action._choices_actions}
+            for sub, child in action.choices.items():
+                assert listed.get(sub), f"{name} {sub} has no help line in {name} --help"
+                yield from _parsers(child, f"{name} {sub}")
+
+
+def test_every_option_of_every_command_has_help():
+    import argparse
+
+    seen = 0
+    for name, parser in _parsers(build_parser()):
+        for action in parser._actions:
+            if isinstance(action, argparse._HelpAction | argparse._SubParsersAction):
+                continue
+            what = "/".join(action.option_strings) or action.dest
+            assert action.help and action.help.strip(), f"{name} {what} has no help"
+            seen += 1
+    assert seen > 100, seen  # run, eval, report, ros ..., scenes, select, train, curves
+
+
+def test_an_unknown_set_field_names_the_close_ones_not_all_of_them(tmp_path, capsys):
+    assert main(["run", "--set", "lidar_ray=16", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "lidar_ray: did you mean lidar_rays" in err, err
+    assert "arena_half_size" not in err, "not the list of every field"
+    assert main(["run", "--set", "qqqq=1", "--out", str(tmp_path / "o")]) == 2
+    assert "arena_half_size" in capsys.readouterr().err, "nothing close: every field"
+
+
+def test_boids_help_shows_examples_that_parse():
+    import shlex
+
+    text = build_parser().format_help()
+    examples = text.split("examples:\n")[1].split("\n\n")[0].splitlines()
+    assert len(examples) >= 5, text
+    commands = set()
+    for line in examples:
+        argv = shlex.split(line.split("   ")[0])
+        assert argv[0] == "boids", line
+        commands.add(build_parser().parse_args(argv[1:]).command)
+    assert {"run", "eval", "train", "curves", "scenes"} <= commands
