@@ -405,6 +405,7 @@ class EnvConfig:
             raise TypeError(f"unknown config field(s) {unknown}; {_close_fields(unknown)}")
         if "path" not in kwargs and _has_items(kwargs.get("waypoints", ())):
             kwargs["path"] = "waypoints"  # as boids run --waypoints: targets mean that path
+        asked = dict(kwargs)  # what the caller gave, before a scene's or robot's defaults
         if "scene" in kwargs:
             kwargs = {**_scene_defaults(kwargs["scene"], kwargs.get(
                 "arena_half_size", self.world.arena_half_size)), **kwargs}
@@ -415,8 +416,8 @@ class EnvConfig:
             changes.setdefault(FIELD_OWNER[name], {})[name] = value
         sections = {sec: dataclasses.replace(getattr(self, sec), **chg)
                     for sec, chg in changes.items()}
-        if "start" in kwargs and "scenario" in sections:
-            _check_walk_start(kwargs["start"], sections["scenario"])
+        if "start" in asked and "scenario" in sections:
+            _check_walk_start(asked["start"], sections["scenario"])
         return dataclasses.replace(self, **sections)
 
     @property

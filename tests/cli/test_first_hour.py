@@ -56,6 +56,10 @@ def test_a_walk_whose_grid_does_not_fit_is_not_told_to_change_the_start():
     config = EnvConfig.from_kwargs(scene="doorway", leader_trajectory="doorway_walk",
                                    leader="trajectory")
     assert EnvConfig.from_dict(config.to_dict()) == config, "a saved config holds the start"
+    # a scene's own start (the arena's 0,0) is no start given: the walk's wins
+    arena = EnvConfig.from_kwargs(scene="arena", leader_trajectory="doorway_walk",
+                                  leader="trajectory", start_heading=180.0)
+    assert arena.scenario.start == (-4.0, 0.0)
 
 
 def _parsers(parser, name="boids"):
