@@ -103,6 +103,7 @@ def _closure(specs: list[str]) -> set[str]:
 
     own = _requirements()
     seen: set[str] = set()
+    expanded: set[str] = set()  # our own extras already followed
     todo = [(Requirement(s), "") for s in specs]
     while todo:
         req, extra = todo.pop()
@@ -110,7 +111,9 @@ def _closure(specs: list[str]) -> set[str]:
             continue
         name = canonicalize_name(req.name)
         if name == "boids-env":
-            todo += [(Requirement(s), "") for e in req.extras for s in own[e]]
+            todo += [(Requirement(s), "") for e in sorted(req.extras - expanded)
+                     for s in own[e]]
+            expanded |= req.extras
             continue
         if name in seen:
             continue
