@@ -395,15 +395,18 @@ class EnvConfig:
     def replace(self, **kwargs: Any) -> EnvConfig:
         """Returns a copy with the named flat fields changed (validated). Choosing a
         ``scene`` (or ``map``, the same field) also sets the scenario fields it defines (its
-        leader path and start) unless they are given too."""
+        leader path and start) unless they are given too; ``waypoints`` without ``path``
+        sets ``path="waypoints"``."""
         if "map" in kwargs:
             if "scene" in kwargs:
                 raise TypeError("give the scene or the map, not both (map=PATH is scene=PATH)")
             kwargs = {("scene" if k == "map" else k): v for k, v in kwargs.items()}
         unknown = sorted(set(kwargs) - set(FIELD_OWNER))
         if unknown:
-            raise TypeError(f"unknown config field(s) {unknown}; valid fields: "
-                            f"{sorted(FIELD_OWNER)}")
+            raise TypeError(f"unknown config field(s) {unknown}; {_close_fields(unknown)}")
+        if "path" not in kwargs and _has_items(kwargs.get("waypoints", ())):
+            kwargs["path"] = "waypoints"  # as boids run --waypoints: targets mean that path
+        asked = dict(kwargs)  # what the caller gave, before a scene's or robot's defaults
         if "scene" in kwargs:
             kwargs = {**_scene_defaults(kwargs["scene"], kwargs.get(
                 "arena_half_size", self.world.arena_half_size)), **kwargs}
@@ -414,6 +417,8 @@ class EnvConfig:
             changes.setdefault(FIELD_OWNER[name], {})[name] = value
         sections = {sec: dataclasses.replace(getattr(self, sec), **chg)
                     for sec, chg in changes.items()}
+        if "start" in asked and "scenario" in sections:
+            _check_walk_start(asked["start"], sections["scenario"])
         return dataclasses.replace(self, **sections)
 
     @property
@@ -469,6 +474,42 @@ DEFAULT_PEDESTRIAN_SLOTS = 4
 """Pedestrian slots in the observations with a crowd (``pedestrian_slots``)."""
 DEFAULT_STATIC_SLOTS = 4
 """Static slots in the observations of any scene but the study's arena (``static_slots``)."""
+
+
+def _close_fields(unknown: list[str]) -> str:
+    """"did you mean ..." with the fields close to the unknown names (difflib), or every
+    field when none is close."""
+    import difflib
+
+    close = {name: difflib.get_close_matches(name, FIELD_OWNER, n=3) for name in unknown}
+    if not any(close.values()):
+        return f"valid fields: {sorted(FIELD_OWNER)}"
+    return "; ".join(f"{name}: did you mean {' or '.join(found)}?" if found else
+                     f"{name}: no field is close" for name, found in close.items())
+
+
+def _check_walk_start(given: Any, sc: ScenarioConfig) -> None:
+    """A recorded walk starts at its first row: a ``start`` elsewhere would be ignored, so it
+    is refused (the walk's own start, as a saved config holds it, is accepted)."""
+    try:
+        same = tuple(map(float, given)) == sc.start
+    except (TypeError, ValueError):
+        same = False
+    if sc.leader == "trajectory" and not same:
+        raise ValueError(
+            f"start {tuple(given)} cannot be given with leader='trajectory': the walk "
+            f"{sc.leader_trajectory} fixes the start at its first row ({sc.start[0]:g}, "
+            f"{sc.start[1]:g}); drop start (boids run: --start), or record a walk that starts "
+            f"where you want")
+
+
+def _has_items(value: Any) -> bool:
+    """Whether ``value`` is a non-empty sequence, or not a sequence at all (the field's own
+    check then names it)."""
+    try:
+        return len(value) > 0
+    except TypeError:
+        return True
 
 
 def _scene_defaults(spec: Any, arena_half_size: Any) -> dict[str, Any]:
@@ -615,6 +656,19 @@ def _check_fits(config: EnvConfig) -> None:
             f"robot_radius and arrival_margin)")
 
 
+def _start_advice(sc: ScenarioConfig, k: int) -> str:
+    """What to change when robot ``k`` starts too close to the scene (a walk fixes the
+    leader's start: only the grid behind it can move)."""
+    grid = f"layout_spacing ({sc.layout_spacing:g} m) or robots ({sc.robots})"
+    if sc.leader != "trajectory":
+        return f"change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, {grid}"
+    if k == 0:
+        return (f"the walk {sc.leader_trajectory} starts there (it fixes the start): use a "
+                f"walk that starts in free space or another scene")
+    return (f"the walk {sc.leader_trajectory} fixes the start ({sc.start[0]:g}, "
+            f"{sc.start[1]:g}): change start_heading (the grid lies behind it), {grid}")
+
+
 def _check_scene(config: EnvConfig) -> None:
     """The start layout and the leader's path checked against the scene: every robot starts
     more than its radius plus the jitter from static geometry, and every leg of the path
@@ -640,8 +694,7 @@ def _check_scene(config: EnvConfig) -> None:
             f"the start does not fit scene {scene.name!r}: {who} would start at "
             f"({cells[k][0]:.2f}, {cells[k][1]:.2f}), {max(clear[k], 0.0):.3f} m from "
             f"{scene.nearest_name(cells[k])}; it needs more than {need[k]:.3f} m ({rule}): "
-            f"change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, "
-            f"layout_spacing ({sc.layout_spacing:g} m) or robots ({sc.robots})")
+            f"{_start_advice(sc, k)}")
     if path is None:
         return
     blocked, which = scene.blocked(path[:-1], path[1:], w.robot_radius)

@@ -96,9 +96,11 @@ def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) ->
                    help="a ROS map_server map (YAML + PGM/PNG) as the scene")
     p.add_argument("--path", choices=PATHS, default=None, help=path_help)
     p.add_argument("--waypoints", type=parse_waypoints, default=None,
-                   help='targets for --path waypoints, "x,y x,y ..." in metres (world frame)')
+                   help='targets of the leader, "x,y x,y ..." in metres (world frame; e.g. '
+                   '"0,4 -4,4" or --waypoints=-4,4); implies --path waypoints')
     p.add_argument("--start", type=parse_point, default=None, metavar="X,Y",
-                   help="where the leader starts (m; the scene's, or 0,0)")
+                   help="where the leader starts (m; the scene's, or 0,0); the arena is "
+                   "centred on 0,0: --start -3,0 or --start=-3,0")
     p.add_argument("--start-heading", type=float, default=None, metavar="DEG",
                    help="direction the leader faces at the start; the grid lies behind it")
     p.add_argument("--leader", choices=LEADERS, default=None,
@@ -544,7 +546,9 @@ def _ros_sim_parser(sub: argparse._SubParsersAction) -> None:
                    help="also hold tick 0 until NODE (e.g. /recorder) subscribes to every "
                    "topic of the graph; repeatable")
     p.add_argument("--out", default=None, help="output folder (none: print only)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true",
+                   help="print nothing but errors (no waiting notes, metrics table or "
+                   "written-files line)")
     p.add_argument("ros_args", nargs="*", help=ROS_ARGS_HELP)
     p.set_defaults(func=_cmd_ros_sim)
 
@@ -593,7 +597,9 @@ def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-ticks", type=int, default=None,
                    help="exit after answering this many ticks")
     p.add_argument("--no-markers", action="store_true", help="do not publish ~markers")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true",
+                   help="print nothing but errors (no start line, waiting or new-episode "
+                   "notes)")
     p.add_argument("ros_args", nargs="*", help=ROS_ARGS_HELP)
     p.set_defaults(func=_cmd_ros_controller)
 

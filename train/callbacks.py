@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import csv
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +46,58 @@ class TrainingMetricsCallback(BaseCallback):
         self._episodes = []
 
 
+class TrainingSummary(BaseCallback):
+    """Prints one line every ``every`` follower-steps and one when training ends, so a run
+    without TensorBoard still shows how it goes: the mean reward per follower-step since the
+    last line (0 is no violation; the study's reward is −(violations)·dt) and, for the training
+    episodes that finished meanwhile, their mean return per follower and V_*. Reads the
+    step's rewards and infos only: the training itself is unchanged."""
+
+    def __init__(self, every: int, total: int, write: Callable[[str], Any] = print) -> None:
+        super().__init__()
+        self.every = max(int(every), 1)
+        self.total = int(total)
+        self.write = write
+        self._rewards: list[float] = []
+        self._returns: list[float] = []
+        self._episodes: list[dict[str, float]] = []
+        self._next = self.every
+
+    def _on_training_start(self) -> None:
+        self._next = (self.num_timesteps // self.every + 1) * self.every  # a resume goes on
+
+    def _on_step(self) -> bool:
+        self._rewards.append(float(np.mean(self.locals["rewards"])))
+        for info in self.locals.get("infos", ()):
+            if EPISODE_INFO in info:
+                self._episodes.append(info[EPISODE_INFO])
+            if "episode" in info:  # VecMonitor: one follower slot's episode return
+                self._returns.append(float(info["episode"]["r"]))
+        if self.num_timesteps >= self._next:
+            self._next = (self.num_timesteps // self.every + 1) * self.every
+            self._report()
+        return True
+
+    def _on_training_end(self) -> None:
+        if self._rewards:
+            self._report()
+
+    def _report(self) -> None:
+        line = (f"boids train: {self.num_timesteps:,}/{self.total:,} follower-steps "
+                f"({min(self.num_timesteps / self.total, 1.0):.0%}): mean reward per "
+                f"follower-step {np.mean(self._rewards):.4f}")
+        if self._episodes:
+            means = {k: np.mean([e[k] for e in self._episodes]) for k in V_KEYS}
+            line += (f"; {len(self._episodes)} training episode(s) ended: return per follower "
+                     f"{np.mean(self._returns):.2f}, " if self._returns else
+                     f"; {len(self._episodes)} training episode(s) ended: ")
+            line += ", ".join(f"{k} {v:.3f}" for k, v in means.items())
+        else:
+            line += "; no training episode has ended since the last line"
+        self.write(line)
+        self._rewards, self._returns, self._episodes = [], [], []
+
+
 class FlockEvalCallback(BaseCallback):
     """Every ``every`` timesteps, runs deterministic evaluation episodes of the current model
     on the study's default case, logs ``eval/V_*``, ``eval/total`` (the study's three summed),
@@ -63,6 +115,8 @@ class FlockEvalCallback(BaseCallback):
         self.env_fields = dict(env_fields)
         self.save_best = save_best
         self.best = float("inf")
+        self.last: int | None = None
+        """The timesteps of the latest evaluation (None: none yet)."""
         self._next = every
 
     def _on_training_start(self) -> None:
@@ -83,6 +137,7 @@ class FlockEvalCallback(BaseCallback):
         policy = SB3Policy(self.model)
         episodes = [run_episode(env, policy, seed, record=True) for seed in self.seeds]
         env.close()
+        self.last = self.num_timesteps
         runs = [e.metrics for e in episodes]
         result = {k: float(np.mean([m[k] for m in runs])) for k in (*V_KEYS, *SAFETY)}
         result["total"] = sum(result[k] for k in V_KEYS)

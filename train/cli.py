@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 import signal
 import sys
 import threading
@@ -31,10 +32,13 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace an earlier training in --out (only what it wrote, as listed in "
                    "its manifest.json; your own files there are kept)")
-    p.add_argument("--algorithm", choices=("ppo", "sac"), default=None)
+    p.add_argument("--algorithm", choices=("ppo", "sac"), default=None,
+                   help="Stable-Baselines3 algorithm (ppo)")
     p.add_argument("--timesteps", type=int, default=None, dest="total_timesteps",
                    help="follower-steps in all (PPO rounds up to whole rollouts)")
-    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--seed", type=int, default=None,
+                   help="seed of the env copies, the policy's initial weights and its "
+                   "sampling (0)")
     p.add_argument("--seeds", type=int, nargs="+", default=None, metavar="N",
                    help="train these seeds, each in --out/seed_N, as separate processes (or "
                    "Ray tasks with --backend ray), then write --out/seeds.csv and seeds.md; "
@@ -51,9 +55,15 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
                    help="learner threads (0: the cores the env workers leave)")
     p.add_argument("--device", choices=("cpu", "cuda", "auto"), default=None,
                    help="where the policy updates run (cpu)")
-    p.add_argument("--group-sizes", type=int, nargs="+", default=None)
-    p.add_argument("--leader-speeds", type=float, nargs="+", default=None)
-    p.add_argument("--eval-every", type=int, default=None, help="timesteps (0: never)")
+    p.add_argument("--group-sizes", type=int, nargs="+", default=None, metavar="N",
+                   help="group sizes (leader included) of the env copies, assigned round "
+                   "robin (7 13 19)")
+    p.add_argument("--leader-speeds", type=float, nargs="+", default=None, metavar="M/S",
+                   help="each training episode draws its leader speed from these "
+                   "(0.5 0.55 0.6)")
+    p.add_argument("--eval-every", type=int, default=None,
+                   help="evaluate the model every this many follower-steps, and the final "
+                   "model at the end, into evaluations.csv (the recipe's, else 1000000; 0: never)")
     p.add_argument("--checkpoint-every", type=int, default=None, help="timesteps (0: never)")
     p.add_argument("--resume", default=None, help="checkpoint zip to continue from, up to "
                    "--timesteps in all (more than it has); goes on in the --out of the "
@@ -137,7 +147,7 @@ def _curves_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--reference", type=float, default=None,
                    help="a total to draw as a dashed line (e.g. Reynolds' on the default "
                    "case)")
-    p.add_argument("--title", default="learning curves")
+    p.add_argument("--title", default="learning curves", help="the figure's title")
     p.set_defaults(func=_cmd_curves)
 
 
@@ -155,8 +165,9 @@ def _cmd_curves(args: argparse.Namespace) -> int:
         path = Path(where if eq else spec)
         csv = path / "evaluations.csv" if path.is_dir() else path
         if not csv.is_file():
-            raise FileNotFoundError(f"no evaluations.csv in {path} (a boids train output "
-                                    f"folder with --eval-every > 0)")
+            raise FileNotFoundError(f"no evaluations.csv in {path}: give a boids train "
+                                    f"output folder (a training with --eval-every 0 "
+                                    f"evaluates nothing)")
         try:
             table = pd.read_csv(csv)
         except (ValueError, UnicodeDecodeError) as exc:
@@ -170,12 +181,57 @@ def _cmd_curves(args: argparse.Namespace) -> int:
     return 0
 
 
+EXAMPLES = """\
+examples:
+  boids run --seed 0 --video                 the study's flock, its metrics and a GIF
+  boids run --scene lab --policy learned-scenes
+  boids run --map my_map.yaml --start=-3,0 --waypoints "-3,3 2,3"
+  boids scenes                               the built-in scenes
+  boids eval --policy reynolds --policy learned --out runs/eval
+  boids train --config ppo_safe --timesteps 200000 --out runs/train
+  boids curves runs/train
+
+boids COMMAND --help describes each command's options."""
+"""Shown under ``boids --help``."""
+
+NEGATIVE_PAIR = re.compile(r"-\.?\d[^,\s]*,")
+"""A value such as ``-3,0`` or ``-4,4 0,0`` (x,y pairs in metres): argparse would read it as
+an option, since it starts with ``-`` and is no plain negative number."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` that takes x,y values starting with a minus sign after an option
+    (``--start -3,0``, ``--waypoints -4,4``) as ``--start=-3,0``: argparse alone reads
+    ``-3,0`` as an unknown option and stops with "expected one argument". Subparsers are built
+    of the same class."""
+
+    def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                         namespace: argparse.Namespace | None = None) -> Any:
+        return super().parse_known_args(join_negative_pairs(
+            sys.argv[1:] if args is None else list(args)), namespace)
+
+
+def join_negative_pairs(args: list[str]) -> list[str]:
+    """``["--start", "-3,0"]`` -> ``["--start=-3,0"]``; everything else unchanged (an option
+    that takes no value then refuses the joined one by name, as it refused ``-3,0``)."""
+    out: list[str] = []
+    for arg in args:
+        prev = out[-1] if out else ""
+        if ("--" not in out and NEGATIVE_PAIR.match(arg) and prev.startswith("-")
+                and "=" not in prev and not NEGATIVE_PAIR.match(prev)):
+            out[-1] = f"{prev}={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
     from boids_env import __version__
     from boids_env.eval import cli as eval_cli
 
-    parser = argparse.ArgumentParser(prog="boids", description="boids-env: leader-following "
-                                     "boids flock (Akgun's ROS study) as a PettingZoo env")
+    parser = Parser(prog="boids", description="boids-env: leader-following "
+                    "boids flock (Akgun's ROS study) as a PettingZoo env",
+                    epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"boids-env {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     eval_cli.add_commands(sub)

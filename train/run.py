@@ -28,7 +28,12 @@ from boids_env.eval import folder
 from boids_env.files import atomic_path, read_zip_entry, write_json
 from boids_env.policies.registry import SB3_ENTRIES
 from boids_env.policies.sb3_policy import algorithm_class, read_meta, write_meta
-from boids_env.train.callbacks import Checkpoints, FlockEvalCallback, TrainingMetricsCallback
+from boids_env.train.callbacks import (
+    Checkpoints,
+    FlockEvalCallback,
+    TrainingMetricsCallback,
+    TrainingSummary,
+)
 from boids_env.train.config import TrainConfig
 from boids_env.train.resume import load_checkpoint
 from boids_env.train.vec_env import CopySpec, FlockVecEnv
@@ -188,6 +193,24 @@ def whole_rollouts(config: TrainConfig, slots: int, remaining: int) -> int:
     return -(-remaining // chunk) * chunk
 
 
+SUMMARIES = 10
+"""Progress lines a training prints (one every tenth of its follower-steps; the last at the
+end)."""
+
+
+def _final_evaluation(evaluator: FlockEvalCallback, config: TrainConfig) -> None:
+    """Evaluates the final model (unless the last periodic evaluation just did), so every
+    run with ``eval_every`` > 0, however short, leaves a row in ``evaluations.csv`` for
+    ``boids curves``; after the training, so the model is unchanged."""
+    evaluator.num_timesteps = evaluator.model.num_timesteps
+    result = evaluator.evaluate()
+    evaluator.logger.dump(evaluator.num_timesteps)
+    print(f"boids train: the final model on the evaluation episodes (seeds "
+          f"{', '.join(map(str, config.eval_seeds))}): total {result['total']:.3f} (" +
+          ", ".join(f"{k} {result[k]:.3f}" for k in ("V_sep", "V_coh", "V_align")) +
+          f"), cost {result['cost']:.3f}; written to evaluations.csv")
+
+
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
           overwrite: bool = False, progress_bar: bool = False, verbose: int = 0,
           trust_model: bool = False) -> Path:
@@ -261,8 +284,12 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
             if rounded != remaining:
                 print(f"boids train: {remaining:,} follower-steps round up to {rounded:,} "
                       f"(whole rollouts of {venv.num_envs} follower slots)")
+            total = (model.num_timesteps if resume else 0) + rounded
+            callbacks.append(TrainingSummary(max(rounded // SUMMARIES, 1), total))
             model.learn(rounded, callback=CallbackList(callbacks), progress_bar=progress_bar,
                         reset_num_timesteps=resume is None, tb_log_name="run")
+            if config.eval_every and evaluator.last != model.num_timesteps:
+                _final_evaluation(evaluator, config)
         save(out / "model.zip")
     finally:
         venv.close()

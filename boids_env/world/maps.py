@@ -15,8 +15,9 @@ segment becomes a thin capsule. The cells themselves stay in the scene to tell f
 from walls exactly as the map does.
 
 Maps come from elsewhere: the YAML is parsed with ``yaml.safe_load`` (no objects), the image
-must lie in the YAML's folder (no absolute paths, no ``..``, no symlink out), and the sizes
-are bounded before anything large is allocated.
+must lie in the YAML's folder once every symlink is followed (a relative path, or an absolute
+one into that folder as ``map_saver -f /abs/path`` writes; never ``..`` or a symlink out), and
+the sizes are bounded before anything large is allocated.
 """
 
 from __future__ import annotations
@@ -96,17 +97,19 @@ def _real(path: Path, name: str, value: Any, lo: float, hi: float) -> float:
 
 
 def _image_path(yaml_path: Path, image: Any) -> Path:
-    """The image file, which must be inside the YAML's folder."""
+    """The image file, which must be inside the YAML's folder once every symlink is followed.
+
+    ``image`` may be relative to the YAML (the ROS convention) or absolute, as
+    ``map_saver -f /abs/path`` writes it; either way a map never reads outside its folder."""
     if not isinstance(image, str) or not image:
         raise ValueError(f"map {yaml_path}: image must be a file name, got {image!r}")
     folder = yaml_path.resolve().parent
-    candidate = Path(image)
-    if candidate.is_absolute() or ".." in candidate.parts:
-        raise ValueError(f"map {yaml_path}: image must be a path inside the map's folder, "
-                         f"got {image!r}")
-    resolved = (folder / candidate).resolve()
+    resolved = (folder / image).resolve()  # an absolute image replaces the folder
     if folder not in resolved.parents:
-        raise ValueError(f"map {yaml_path}: image {image!r} leads outside the map's folder")
+        raise ValueError(f"map {yaml_path}: image {image!r} leads to {resolved}, outside the "
+                         f"map's folder {folder} (a map file is not trusted to read elsewhere); "
+                         f"move the image beside the YAML and make image: relative, e.g. "
+                         f"image: {Path(image).name}")
     if not resolved.is_file():
         raise ValueError(f"map {yaml_path}: image {image!r} not found beside it")
     return resolved

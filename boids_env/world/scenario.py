@@ -59,7 +59,8 @@ class ScenarioConfig:
     """Mirror the leader path and the initial layout in x before the rotation (the square then
     turns right at its first corner). False is the study's."""
     waypoints: tuple[tuple[float, float], ...] = ()
-    """Absolute targets (m) for ``path="waypoints"``; ignored by the other paths."""
+    """Absolute targets (m) for ``path="waypoints"``; ignored by the other paths. Given without
+    ``path`` (to :meth:`EnvConfig.replace`, ``parallel_env``), they set ``path="waypoints"``."""
     laps: int = 1
     """Laps of the circle and figure-eight paths."""
     random_waypoint_count: int = 6

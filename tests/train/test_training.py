@@ -66,10 +66,13 @@ def test_resume_continues_to_the_total(tmp_path):
     start = SB3Policy.load(ckpt, trust=True).model.num_timesteps
     path = train(cfg.replace(total_timesteps=2400, eval_every=500), tmp_path / "resumed",
                  resume=ckpt)
-    assert SB3Policy.load(path, trust=True).model.num_timesteps >= 2400
-    # evaluations go on every 500 steps from the checkpoint, not once per step to catch up
+    final = SB3Policy.load(path, trust=True).model.num_timesteps
+    assert final >= 2400
+    # evaluations go on every 500 steps from the checkpoint, not once per step to catch up;
+    # the last row is the final model's
     evals = (tmp_path / "resumed" / "evaluations.csv").read_text().splitlines()[1:]
-    steps = [int(row.split(",")[0]) for row in evals]
+    *steps, last = [int(row.split(",")[0]) for row in evals]
+    assert last == final
     assert steps and steps[0] > start
     assert len(steps) == len({s // 500 for s in steps}) <= (2400 - start) // 500 + 1
     with pytest.raises(FileNotFoundError, match="checkpoint to resume not found"):
@@ -168,3 +171,25 @@ def test_boids_train_then_boids_run(tmp_path):
     assert run.returncode == 0, run.stderr
     metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
     assert metrics["steps"] == 30 and {"V_sep", "V_coh", "V_align"} <= metrics.keys()
+
+
+def test_a_short_training_says_how_it_goes_and_evaluates_its_final_model(tmp_path, capsys):
+    """A run far shorter than eval_every (the default 1,000,000) still prints its progress and
+    evaluates the final model once, so ``boids curves`` has a point to draw."""
+    from boids_env.train.cli import main
+
+    path = train(TrainConfig(**{**TINY, "eval_every": 1_000_000}), tmp_path / "t")
+    out = capsys.readouterr().out
+    # 1200 follower-steps round up to 1680 (rollouts of 80 steps × 7 slots): a line a tenth
+    lines = [line for line in out.splitlines() if " follower-steps (" in line]
+    assert [line.split(":")[1].split()[0] for line in lines] == [
+        f"{168 * k:,}/1,680" for k in range(1, 11)], out
+    rewards = [float(line.split("follower-step ")[1].split(";")[0]) for line in lines]
+    assert all(-0.3 <= r <= 0 for r in rewards), "the study's reward: −(0 to 3 flags)·dt"
+    assert "training episode(s) ended: return per follower" in out, "30-step episodes end"
+    evals = (tmp_path / "t" / "evaluations.csv").read_text().splitlines()
+    assert len(evals) == 2 and evals[1].startswith("1680,"), evals
+    assert SB3Policy.load(path, trust=True).model.num_timesteps == 1680
+    assert "the final model on the evaluation episodes (seeds 100, 101): total" in out
+    assert main(["curves", str(tmp_path / "t"), "--out", str(tmp_path / "c.png")]) == 0
+    assert (tmp_path / "c.png").is_file()

@@ -67,6 +67,33 @@ def test_a_symlink_out_of_the_folder_is_refused(tmp_path):
         maps.load_map(_map(inner, [[0]], image="link.pgm"))
 
 
+def test_an_absolute_image_inside_the_folder_is_read_as_map_saver_writes_it(tmp_path):
+    # map_saver -f /abs/path/office writes image: /abs/path/office.pgm
+    pixels = [[0, 254, 205], [100, 80, 254]]
+    relative = maps.read_occupancy(maps.read_map_yaml(_map(tmp_path, pixels)))
+    path = _map(tmp_path, pixels, image=str(tmp_path / "m.pgm"))
+    assert maps.read_map_yaml(path)["image"] == (tmp_path / "m.pgm").resolve()
+    assert maps.read_occupancy(maps.read_map_yaml(path)).tolist() == relative.tolist()
+    # the same map reached through a symlinked folder, its image named through the link
+    (tmp_path / "real").mkdir()
+    linked = tmp_path / "link"
+    os.symlink(tmp_path / "real", linked)
+    path = _map(linked, pixels, image=str(linked / "m.pgm"))
+    assert maps.read_occupancy(maps.read_map_yaml(path)).tolist() == relative.tolist()
+
+
+def test_an_absolute_image_outside_the_folder_says_why_and_how_to_fix_it(tmp_path):
+    inner = tmp_path / "inner"
+    inner.mkdir()
+    _map(tmp_path, [[0]])
+    with pytest.raises(ValueError, match=r"outside the map's folder .*move the image beside "
+                       r"the YAML and make image: relative, e\.g\. image: m\.pgm"):
+        maps.load_map(_map(inner, [[0]], image=str(tmp_path / "m.pgm")))
+    os.symlink(tmp_path / "m.pgm", inner / "link.pgm")  # absolute, inside, but a link out
+    with pytest.raises(ValueError, match="outside the map's folder"):
+        maps.load_map(_map(inner, [[0]], image=str(inner / "link.pgm")))
+
+
 def test_yaml_objects_and_huge_images_are_refused_before_decoding(tmp_path, monkeypatch):
     path = _map(tmp_path, [[0, 0], [0, 0]])
     path.write_text(path.read_text() + "\nx: !!python/object/apply:os.system ['touch pwned']\n")
@@ -157,3 +184,23 @@ def test_the_lab_scene_runs_clear_of_its_walls():
     result = run_episode(parallel_env(scene="lab"), ReynoldsPolicy(), seed=1)
     assert result.metrics["wall_fraction"] == 0.0
     assert result.metrics["min_clearance"] > 0.1
+
+
+def test_waypoints_in_python_set_the_waypoints_path_as_the_cli_does(tmp_path):
+    """``parallel_env(map=..., waypoints=[...])`` drives the waypoints (as ``boids run
+    --waypoints`` does), not the map's default square (which here runs into the wall)."""
+    yaml = _my_room(tmp_path)
+    env = parallel_env(map=str(yaml), robots=4, start=(1.5, 2.0), start_heading=0.0,
+                       waypoints=[(2.5, 2.0), (2.5, 3.0)])
+    assert env.config.scenario.path == "waypoints"
+    assert env.config.scenario.waypoints == ((2.5, 2.0), (2.5, 3.0))
+    env.reset(seed=0)
+    for _ in range(30):  # past the 2 s start-up
+        env.step({a: np.zeros(2) for a in env.agents})
+    x, y = env.snapshot().positions[0]
+    assert 1.5 < x < 2.6 and y == pytest.approx(2.0, abs=1e-6), "east, to the first waypoint"
+    assert EnvConfig.from_kwargs(waypoints=[(1.0, 0.0)]).scenario.path == "waypoints"
+    # a path given stays; no waypoints (the default) leave the study's square
+    assert EnvConfig.from_kwargs(path="circle", waypoints=[(1.0, 0.0)]).scenario.path == "circle"
+    assert EnvConfig.from_kwargs(waypoints=()) == EnvConfig()
+    assert EnvConfig().replace(robots=13) == EnvConfig()
