@@ -12,7 +12,8 @@ run inside the command, which answers a Ctrl-C with one line instead of a traceb
 
 Importing the package registers the Gymnasium id ``boids_env/SingleFollower-v0``
 (:class:`boids_env.single.SingleFollowerEnv`) by its entry-point string, so ``gym.make`` and
-``gym.make_vec`` find it; that imports gymnasium (and numpy, about 0.1 s), not the env. The glue
+``gym.make_vec`` find it: at once if gymnasium is imported already, else as soon as it is
+(importing gymnasium and numpy here would undo the lazy imports above). The glue
 for other libraries (SuperSuit + SB3, RLlib, BenchMARL) is in :mod:`boids_env.integrations`,
 imported only when asked.
 """
@@ -20,6 +21,9 @@ imported only when asked.
 from __future__ import annotations
 
 import importlib
+import importlib.abc
+import importlib.util
+import sys
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -73,7 +77,31 @@ def _register_gymnasium_ids() -> None:
             gymnasium.register(id=env_id, entry_point=entry_point)
 
 
-_register_gymnasium_ids()
+class _RegisterAfterGymnasium(importlib.abc.MetaPathFinder):
+    """Registers the ids once gymnasium has been imported, whoever imports it: importing
+    gymnasium (and numpy) with the package would run before the ``boids`` command can answer
+    a Ctrl-C (see above), and the command never needs the ids."""
+
+    def find_spec(self, name: str, path: Any = None, target: Any = None) -> Any:
+        if name != "gymnasium":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.loader is not None:
+            exec_module = spec.loader.exec_module
+
+            def exec_then_register(module: Any) -> None:
+                exec_module(module)
+                _register_gymnasium_ids()
+
+            spec.loader.exec_module = exec_then_register  # type: ignore[method-assign]
+        return spec
+
+
+if "gymnasium" in sys.modules:
+    _register_gymnasium_ids()
+elif not any(isinstance(f, _RegisterAfterGymnasium) for f in sys.meta_path):
+    sys.meta_path.insert(0, _RegisterAfterGymnasium())
 
 
 def __getattr__(name: str) -> Any:

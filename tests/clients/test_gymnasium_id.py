@@ -50,3 +50,16 @@ def test_the_id_is_registered_without_importing_the_env():
             "'pymunk' in sys.modules, 'boids_env.single' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["True", "False", "False"]
+
+
+def test_the_package_imports_no_gymnasium_and_registers_whichever_comes_first():
+    """The ``boids`` command imports the package before it can answer a Ctrl-C, so the
+    package must not import gymnasium (numpy) itself; the id is there in either order."""
+    probe = ("'gymnasium' in sys.modules, "
+             "'boids_env/SingleFollower-v0' in gymnasium.registry")
+    for imports in ("import sys, boids_env; bare = 'gymnasium' in sys.modules; "
+                    "import gymnasium; print(bare, " + probe + ")",
+                    "import sys, gymnasium, boids_env; print(False, " + probe + ")"):
+        out = subprocess.run([sys.executable, "-c", imports], capture_output=True, text=True,
+                             check=True)
+        assert out.stdout.split() == ["False", "True", "True"], (imports, out.stdout)
