@@ -589,11 +589,20 @@ def _check_physics(config: EnvConfig) -> None:
 
 def _check_fits(config: EnvConfig) -> None:
     """Raises ``ValueError`` if the initial layout or the leader path leaves the arena (or
-    meets an obstacle of the scene), or the physics cannot hold (see ``_check_physics``)."""
+    meets an obstacle of the scene), or the physics cannot hold (see ``_check_physics``).
+
+    In the study's arena from the origin, the extents of the grid and of the scripted path
+    are checked first for a message in the arena's own terms; the scene check (the leader's
+    actual path: a recorded walk, a turned start grid) always runs after it, so no start
+    position or leader kind skips it."""
     _check_physics(config)
-    if config.world.scene != "arena" or config.scenario.start != (0.0, 0.0):
-        _check_scene(config)
-        return
+    if config.world.scene == "arena" and config.scenario.start == (0.0, 0.0):
+        _check_arena_extents(config)
+    _check_scene(config)
+
+
+def _check_arena_extents(config: EnvConfig) -> None:
+    """The study grid and the scripted path's bounding box against the arena's half size."""
     half = config.world.arena_half_size
     room = half - config.world.robot_radius
     need = layout_extent(config.scenario)
@@ -644,13 +653,15 @@ def _check_scene(config: EnvConfig) -> None:
     if path is None:
         return
     blocked, which = scene.blocked(path[:-1], path[1:], w.robot_radius)
+    what = (f"the walk {sc.leader_trajectory}" if sc.leader == "trajectory"
+            else f"the leader path '{sc.path}'")
     if scene.box is not None:
         margin = w.robot_radius + sc.arrival_margin
         near_box = scene.box_clearance(path) <= margin
         if near_box.any():
             k = int(np.argmax(near_box))
             raise ValueError(
-                f"the leader path '{sc.path}' reaches ({path[k][0]:.2f}, {path[k][1]:.2f}), "
+                f"{what} reaches ({path[k][0]:.2f}, {path[k][1]:.2f}), "
                 f"within {margin:.3f} m (robot_radius + arrival_margin) of "
                 f"{scene.box_wall_name(path[k:k + 1], margin + 1e-9)} of scene "
                 f"{scene.name!r}: keep its waypoints / path_size inside")
@@ -662,7 +673,7 @@ def _check_scene(config: EnvConfig) -> None:
                f"the part near ({a[0]:.2f}, {a[1]:.2f})")
         obstacle = scene.names[which[k]] if which[k] >= 0 else "an occupied map cell"
         raise ValueError(
-            f"the leader path '{sc.path}' of scene {scene.name!r}: {leg} crosses or passes "
+            f"{what} of scene {scene.name!r}: {leg} crosses or passes "
             f"closer than robot_radius ({w.robot_radius:g} m) to {obstacle}; change the "
             f"waypoints, path, path_size, path_rotation or start")
 
