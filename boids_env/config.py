@@ -35,6 +35,8 @@ from boids_env.world.scenario import PATHS as PATHS
 from boids_env.world.scenario import scene_matrix as scene_matrix
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     from boids_env.world.scene import Scene
 
 FRAMES = ("world", "leader")
@@ -421,6 +423,18 @@ class EnvConfig:
         from boids_env.world.scenes import load_scene
 
         return load_scene(self.world.scene, self.world.arena_half_size)
+
+    def input_files(self) -> tuple[Path, ...]:
+        """Every file this config reads (resolved paths, each once): a scene's shapes file or
+        map YAML and image, a recorded walk. Whatever depends on their content (a run
+        folder's identity) hashes these (:func:`boids_env.files.file_digest`)."""
+        from boids_env.world.scenes import scene_files
+        from boids_env.world.walks import walk_file
+
+        files = list(scene_files(self.world.scene))
+        if self.scenario.leader_trajectory is not None:
+            files.append(walk_file(self.scenario.leader_trajectory))
+        return tuple(dict.fromkeys(files))
 
     @property
     def static_slots(self) -> int:

@@ -250,12 +250,27 @@ def _finished(out: Path, tasks: Sequence[Task]) -> dict[str, dict[str, Any]]:
 
 
 def identity(suite: Suite, policies: Sequence[PolicySpec]) -> dict[str, Any]:
-    """What makes two evaluations the same (the seeds aside: more seeds resume)."""
+    """What makes two evaluations the same (the seeds aside: more seeds resume): the cases,
+    the policies with their fingerprints, and the content of every file a case reads (a walk,
+    a map and its image, a shapes file), so an edited file is never resumed as the old one."""
     described = suite_to_dict(suite, policies)
     described.pop("seeds")
     for entry, policy in zip(described["policies"], policies, strict=True):
         entry["fingerprint"] = policy.fingerprint
+    inputs = input_digests(suite)
+    if inputs:  # absent without files: folders of file-free suites keep their identity
+        described["inputs"] = inputs
     return described
+
+
+def input_digests(suite: Suite) -> dict[str, str]:
+    """The SHA-256 of every file the suite's cases read, by resolved path."""
+    from boids_env.config import EnvConfig
+    from boids_env.files import file_digest
+
+    files = {path for case in suite.cases
+             for path in EnvConfig().replace(**case.env).input_files()}
+    return {str(path): file_digest(path) for path in sorted(files)}
 
 
 def _check_arguments(backend: str, workers: int | None, episode_timeout: float | None
