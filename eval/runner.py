@@ -175,6 +175,23 @@ def slug(text: str, limit: int = 60) -> str:
     return out
 
 
+def unique_stems(keys: Sequence[tuple[str, ...]], prefix: str = "",
+                 taken: Sequence[str] = ()) -> dict[tuple[str, ...], str]:
+    """A distinct file stem per key (a tuple of names, e.g. (policy, group)): ``prefix`` and
+    the names' :func:`slug` joined by ``_``. Names that differ only in what the slug drops
+    (``speed=0.3``, ``speed 0.3``) would share a file, as would a key and a ``taken`` stem:
+    each such key gets a short hash of its own names added (``p_1_g_1-3f2a9c01``), so no
+    figure or table of one name ever overwrites another's."""
+    keys = list(dict.fromkeys(tuple(str(n) for n in k) for k in keys))
+    plain = {k: prefix + "_".join(slug(n) for n in k) for k in keys}
+    uses: dict[str, int] = {}
+    for stem in [*plain.values(), *taken]:
+        uses[stem] = uses.get(stem, 0) + 1
+    return {k: stem if uses[stem] == 1 else
+            f"{stem}-{hashlib.sha256(json.dumps(k).encode()).hexdigest()[:8]}"
+            for k, stem in plain.items()}
+
+
 def trajectory_name(policy: PolicySpec, case: Case, seed: int) -> str:
     """``POLICY__CASE__seedN.parquet``, readable and filesystem-safe."""
     return f"{slug(policy.label)}__{slug(case.name)}__seed{seed}.parquet"
