@@ -359,7 +359,22 @@ class MetricsConfig:
 
 _SECTIONS = {"world": WorldConfig, "scenario": ScenarioConfig, "observation": ObservationConfig,
              "metrics": MetricsConfig, "realism": RealismConfig, "safety": SafetyConfig}
-FIELD_OWNER: dict[str, str] = {f.name: sec for sec, cls in _SECTIONS.items() for f in fields(cls)}
+
+
+def field_owners(sections: dict[str, type]) -> dict[str, str]:
+    """Which section owns each flat field name; a name in two sections is a ``TypeError``
+    (every field has one owner: a flat name must never reach the wrong section)."""
+    owners: dict[str, str] = {}
+    for section, cls in sections.items():
+        for f in fields(cls):
+            if f.name in owners:
+                raise TypeError(f"config field {f.name!r} is in both {owners[f.name]!r} and "
+                                f"{section!r}; every flat field name has one owner")
+            owners[f.name] = section
+    return owners
+
+
+FIELD_OWNER: dict[str, str] = field_owners(_SECTIONS)
 """Which section owns each flat config name (``robots`` -> ``scenario``, ...)."""
 
 
@@ -771,6 +786,19 @@ PRESETS: dict[str, ReynoldsParams] = {
     "proxemic": ReynoldsParams(personal_space=1.2),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
+
+
+ENV_OWNED = tuple(f.name for f in fields(ReynoldsParams) if f.name in FIELD_OWNER)
+"""Reynolds parameters that are physical or timing quantities of the env (``horizon``,
+``max_speed``, ``dt``, ``startup_time``): the env's config owns them. A suite routes them to
+the env (every policy's episodes see them); a policy bound to an env takes them from its
+config (:func:`env_quantities`)."""
+
+
+def env_quantities(config: EnvConfig) -> dict[str, float]:
+    """The values of :data:`ENV_OWNED` in ``config``: its sensing horizon (m), robots' top
+    speed (m/s), control period (s) and start-up time (s), by Reynolds parameter name."""
+    return {name: getattr(getattr(config, FIELD_OWNER[name]), name) for name in ENV_OWNED}
 
 
 def reynolds_params(preset: str = "paper", **overrides: Any) -> ReynoldsParams:

@@ -370,7 +370,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         else:
             commands = clip_speed(self._observer.to_world(actions), cfg.world.max_speed)
         sc = cfg.scenario
-        if sc.startup_hold and world.time < sc.startup_time - 1e-9:
+        if sc.startup_hold and scenario.holding(world.time, sc.startup_time):
             commands = np.zeros_like(commands)
         crowd = None
         if self._people is not None:
