@@ -216,3 +216,13 @@ def record_files(out: Path, names: Iterable[str], owner: Owner = EVAL) -> None:
     files = list(dict.fromkeys([*manifest.get("files", []), *filter(owner.allows, names)]))
     if files != manifest.get("files"):
         write_json(out / MANIFEST, {**manifest, "files": files})
+
+
+def record_entry(out: Path, key: str, value: Any, owner: Owner = EVAL) -> None:
+    """Sets ``key`` of the folder's manifest to ``value`` (a JSON value; ``kind``,
+    ``identity`` and ``files`` are the folder's own and never set here)."""
+    if key in ("kind", "identity", "files"):
+        raise ValueError(f"manifest entry {key!r} is the folder's own")
+    manifest = read_manifest(out, owner)
+    if manifest is not None and manifest.get(key) != value:
+        write_json(out / MANIFEST, {**manifest, key: value})

@@ -20,12 +20,12 @@ import pandas as pd
 from boids_env.eval import figures
 from boids_env.eval.compare import policy_comparison, with_contacts
 from boids_env.eval.compare import verdicts as policy_verdicts
-from boids_env.eval.folder import REPORT_OUTPUTS, record_files
+from boids_env.eval.folder import REPORT_OUTPUTS, read_manifest, record_files
 from boids_env.eval.html import write_html
 from boids_env.eval.markup import escape
 from boids_env.eval.people_report import has_people, person_section
 from boids_env.eval.robot_types import robot_sections
-from boids_env.eval.runner import unique_stems
+from boids_env.eval.runner import WORLD_CHANGES, unique_stems
 from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, pair_difference
 from boids_env.eval.study import (
     GROUP_OF_RQ,
@@ -294,6 +294,7 @@ def build_report(out: str | Path) -> Path:
         _, tukey_study = analyse(table, per_follower, followers, unwrapped=True)
         csvs["stats_tukey_study.csv"] = tukey_study
         md += robot_sections(table, tukey_study, policies, _md_table, csvs, summary)
+    md += _world_changes_section(out)
     md += ["## Results per case", "",
            f"Two alignment columns: the rule the episodes ran with ({rule}) and the study's "
            f"unwrapped rule. Distances in m.", "",
@@ -461,6 +462,36 @@ def _study_per_follower(metric: str, followers: int) -> dict[str, np.ndarray]:
                 & (runs.follower.astype(float) <= followers)]
     return {str(level): g.pivot(index="run", columns="follower", values="value").to_numpy(float)
             for level, g in rows.groupby("level", sort=False)}
+
+
+def _world_changes_section(out: Path) -> list[str]:
+    """What a policy changed in the world of its own episodes (a model's env fields), and
+    which fields of a model's training a case overrode, from the folder's manifest."""
+    manifest = read_manifest(out) or {}
+    changes = manifest.get(WORLD_CHANGES)
+    if not isinstance(changes, dict) or not changes:
+        return []
+    rows = []
+    for policy, cases in changes.items():
+        for case, kinds in (cases.items() if isinstance(cases, dict) else []):
+            for kind, label in (("changed", "its env fields"),
+                                ("untrained", "the case, against its training")):
+                table = kinds.get(kind) if isinstance(kinds, dict) else None
+                for name, pair in (table.items() if isinstance(table, dict) else []):
+                    if isinstance(pair, list) and len(pair) == 2:
+                        rows.append({"policy": str(policy), "case": str(case),
+                                     "field": str(name), "set by": label,
+                                     "case asked": json.dumps(pair[0]),
+                                     "episodes ran with": json.dumps(pair[1])})
+    if not rows:
+        return []
+    return ["## Worlds changed by a policy", "",
+            "These policies' episodes did not run in the world the case describes: a model's "
+            "env fields changed it for its own episodes (*its env fields*), or the case "
+            "changed a field the model was trained with (*the case, against its training*; "
+            "for those, *case asked* is the trained value). Compare their numbers with the "
+            "other policies' knowing this.", "",
+            _md_table(pd.DataFrame(rows)), ""]
 
 
 FIXED_FIGURES = ("safety", "policies_total")

@@ -280,6 +280,42 @@ def identity(suite: Suite, policies: Sequence[PolicySpec]) -> dict[str, Any]:
     return described
 
 
+WORLD_CHANGES = "world_changes"
+"""The manifest's entry of what each policy changes in the world of its episodes."""
+
+
+def suite_world_changes(suite: Suite, policies: Sequence[PolicySpec]
+                        ) -> dict[str, dict[str, dict[str, dict[str, list[Any]]]]]:
+    """Per policy label and case, what running the policy changes in the case's world
+    (:func:`~boids_env.eval.episode.world_changes`): only policies and cases with a change."""
+    from boids_env.eval.episode import world_changes
+
+    out: dict[str, dict[str, dict[str, dict[str, list[Any]]]]] = {}
+    for policy in policies:
+        for case in suite.cases:
+            changes = world_changes(_fields_holder(policy, case), case.env)
+            if changes["changed"] or changes["untrained"]:
+                out.setdefault(policy.label, {})[case.name] = {
+                    k: v for k, v in changes.items() if v}
+    return out
+
+
+def _fields_holder(policy: PolicySpec, case: Case) -> Any:
+    """What :func:`~boids_env.eval.episode.env_fields_for` reads of the policy a worker builds
+    for ``case``: a model's env fields from its metadata (nothing of it is loaded), else the
+    policy itself (Reynolds parameters, a ``module:object``'s own fields)."""
+    from types import SimpleNamespace
+
+    from boids_env.policies.registry import MODELS, load_policy
+
+    path = MODELS.get(policy.spec, Path(policy.spec))
+    if path.suffix == ".zip":
+        from boids_env.policies.sb3_policy import read_meta
+
+        return SimpleNamespace(env_fields=dict(read_meta(path).get("env_fields") or {}))
+    return load_policy(policy.spec, preset=policy.preset, trust=policy.trust, **case.policy)
+
+
 def input_digests(suite: Suite) -> dict[str, str]:
     """The SHA-256 of every file the suite's cases read, by resolved path."""
     from boids_env.config import EnvConfig
@@ -359,6 +395,8 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
     tasks = plan(policies, suite, str(out / TRAJECTORIES), keep_trajectories)
 
     folder.claim(out, identity(suite, policies), overwrite=overwrite)
+    # what a policy changes in the world of its episodes, never silent (the report shows it)
+    folder.record_entry(out, WORLD_CHANGES, suite_world_changes(suite, policies))
     done = _finished(out, tasks)
     todo = [t for t in tasks if t.key not in done]
     (out / ERRORS).unlink(missing_ok=True)
