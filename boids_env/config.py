@@ -717,19 +717,23 @@ class ReynoldsParams:
     leader_weight: float = 1.0
     """Weight of the leader-following term. Study: 1.0, 1.1, 1.2."""
     horizon: float = 1.0
-    """Neighbour radius (m). Paper 1.0, original code 0.75."""
+    """Neighbour radius (m). Paper 1.0, original code 0.75. Bound to an env, the env's sensing
+    ``horizon`` unless the preset or the caller sets one (at most the env's)."""
     desired_separation: float = 0.7
     """Neighbours closer than this push away (m). Paper 0.7, original code 0.45."""
     max_speed: float = 0.5
-    """Commanded speed limit (m/s)."""
+    """Commanded speed limit (m/s). Bound to an env, the robots' ``max_speed`` unless given
+    (at most the env's)."""
     max_force: float = 0.23
     """Steering force limit (N); not stated in the paper, the original code's 0.23."""
     mass: float = 0.18
     """Mass (kg) used to integrate the steering force."""
     dt: float = 0.1
-    """Control period (s)."""
+    """Control period (s) of an unbound controller; bound to an env, always the env's ``dt``
+    (see :data:`ENV_OWNED`)."""
     startup_time: float = 2.0
-    """Zero command for this long after reset (s)."""
+    """Zero command for this long after reset (s); bound to an env, always the env's
+    ``startup_time``."""
     obstacle_avoidance: bool | None = None
     """Steer away from walls and obstacles (not in the study). None: on whenever the env's
     scene is not the study's empty arena and its observations carry static slots (the policy
