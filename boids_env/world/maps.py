@@ -154,9 +154,8 @@ def _grey_levels(img: Any, what: str) -> tuple[npt.NDArray[np.float64], float]:
                              f"[{values.min():g}, {values.max():g}] (mode {img.mode})")
     elif img.mode in ("L", "P", "1", "F"):
         values, full = np.asarray(img.convert("L"), dtype=np.float64), 255.0
-    else:
-        values = np.asarray(img.convert("RGB"), dtype=np.float64).mean(axis=2)
-        full = 255.0
+    else:  # Pillow gives colour at 8 bits whatever the file's depth: white is 255
+        return np.asarray(img.convert("RGB"), dtype=np.float64).mean(axis=2), 255.0
     if maxval is None or maxval == full:
         return values, full
     # Pillow stretches a PGM's levels 0..maxval to 0..full, rounded: undo it exactly (one
