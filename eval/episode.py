@@ -62,8 +62,8 @@ def check_training(policy: Policy, config: EnvConfig) -> None:
     one with ``env_fields``) in a field of :data:`TRAINED_INTERFACE`, naming each field, the
     trained value and the env's."""
     fields = getattr(policy, "env_fields", None)
-    if not isinstance(fields, dict):
-        return  # not a learned model (the Reynolds and random policies adapt to any env)
+    if not isinstance(fields, dict) or not getattr(policy, "training_known", True):
+        return  # not a learned model (Reynolds, random adapt to any env), or one wrapped bare
     trained = EnvConfig.from_kwargs(**fields)
     bad = [(n, _value(trained, n), _value(config, n)) for n in TRAINED_INTERFACE
            if _value(trained, n) != _value(config, n)]
