@@ -80,9 +80,10 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
     if "scene" not in fields:
         fields["arena_half_size"] = arena_for(robots)
     fields.setdefault("path", "external")  # a person walks its own path (JuPedSim)
+    fields.setdefault("startup_time", 0.0)  # the followers move from the first step
     env = parallel_env(robots=robots, max_cycles=10**9, **fields)
     rng = np.random.default_rng(0)
-    reynolds = ReynoldsPolicy(startup_time=0.0)
+    reynolds = ReynoldsPolicy()  # bound below: the env's start-up (none), period and speed
     limit = env.config.world.max_speed
     external = env.config.scenario.path == "external"
 

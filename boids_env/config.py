@@ -36,6 +36,8 @@ from boids_env.world.scenario import PATHS as PATHS
 from boids_env.world.scenario import scene_matrix as scene_matrix
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     from boids_env.world.scene import Scene
 
 FRAMES = ("world", "leader")
@@ -358,7 +360,22 @@ class MetricsConfig:
 
 _SECTIONS = {"world": WorldConfig, "scenario": ScenarioConfig, "observation": ObservationConfig,
              "metrics": MetricsConfig, "realism": RealismConfig, "safety": SafetyConfig}
-FIELD_OWNER: dict[str, str] = {f.name: sec for sec, cls in _SECTIONS.items() for f in fields(cls)}
+
+
+def field_owners(sections: dict[str, type]) -> dict[str, str]:
+    """Which section owns each flat field name; a name in two sections is a ``TypeError``
+    (every field has one owner: a flat name must never reach the wrong section)."""
+    owners: dict[str, str] = {}
+    for section, cls in sections.items():
+        for f in fields(cls):
+            if f.name in owners:
+                raise TypeError(f"config field {f.name!r} is in both {owners[f.name]!r} and "
+                                f"{section!r}; every flat field name has one owner")
+            owners[f.name] = section
+    return owners
+
+
+FIELD_OWNER: dict[str, str] = field_owners(_SECTIONS)
 """Which section owns each flat config name (``robots`` -> ``scenario``, ...)."""
 
 
@@ -427,6 +444,18 @@ class EnvConfig:
         from boids_env.world.scenes import load_scene
 
         return load_scene(self.world.scene, self.world.arena_half_size)
+
+    def input_files(self) -> tuple[Path, ...]:
+        """Every file this config reads (resolved paths, each once): a scene's shapes file or
+        map YAML and image, a recorded walk. Whatever depends on their content (a run
+        folder's identity) hashes these (:func:`boids_env.files.file_digest`)."""
+        from boids_env.world.scenes import scene_files
+        from boids_env.world.walks import walk_file
+
+        files = list(scene_files(self.world.scene))
+        if self.scenario.leader_trajectory is not None:
+            files.append(walk_file(self.scenario.leader_trajectory))
+        return tuple(dict.fromkeys(files))
 
     @property
     def static_slots(self) -> int:
@@ -631,11 +660,20 @@ def _check_physics(config: EnvConfig) -> None:
 
 def _check_fits(config: EnvConfig) -> None:
     """Raises ``ValueError`` if the initial layout or the leader path leaves the arena (or
-    meets an obstacle of the scene), or the physics cannot hold (see ``_check_physics``)."""
+    meets an obstacle of the scene), or the physics cannot hold (see ``_check_physics``).
+
+    In the study's arena from the origin, the extents of the grid and of the scripted path
+    are checked first for a message in the arena's own terms; the scene check (the leader's
+    actual path: a recorded walk, a turned start grid) always runs after it, so no start
+    position or leader kind skips it."""
     _check_physics(config)
-    if config.world.scene != "arena" or config.scenario.start != (0.0, 0.0):
-        _check_scene(config)
-        return
+    if config.world.scene == "arena" and config.scenario.start == (0.0, 0.0):
+        _check_arena_extents(config)
+    _check_scene(config)
+
+
+def _check_arena_extents(config: EnvConfig) -> None:
+    """The study grid and the scripted path's bounding box against the arena's half size."""
     half = config.world.arena_half_size
     room = half - config.world.robot_radius
     need = layout_extent(config.scenario)
@@ -698,13 +736,15 @@ def _check_scene(config: EnvConfig) -> None:
     if path is None:
         return
     blocked, which = scene.blocked(path[:-1], path[1:], w.robot_radius)
+    what = (f"the walk {sc.leader_trajectory}" if sc.leader == "trajectory"
+            else f"the leader path '{sc.path}'")
     if scene.box is not None:
         margin = w.robot_radius + sc.arrival_margin
         near_box = scene.box_clearance(path) <= margin
         if near_box.any():
             k = int(np.argmax(near_box))
             raise ValueError(
-                f"the leader path '{sc.path}' reaches ({path[k][0]:.2f}, {path[k][1]:.2f}), "
+                f"{what} reaches ({path[k][0]:.2f}, {path[k][1]:.2f}), "
                 f"within {margin:.3f} m (robot_radius + arrival_margin) of "
                 f"{scene.box_wall_name(path[k:k + 1], margin + 1e-9)} of scene "
                 f"{scene.name!r}: keep its waypoints / path_size inside")
@@ -716,7 +756,7 @@ def _check_scene(config: EnvConfig) -> None:
                f"the part near ({a[0]:.2f}, {a[1]:.2f})")
         obstacle = scene.names[which[k]] if which[k] >= 0 else "an occupied map cell"
         raise ValueError(
-            f"the leader path '{sc.path}' of scene {scene.name!r}: {leg} crosses or passes "
+            f"{what} of scene {scene.name!r}: {leg} crosses or passes "
             f"closer than robot_radius ({w.robot_radius:g} m) to {obstacle}; change the "
             f"waypoints, path, path_size, path_rotation or start")
 
@@ -734,19 +774,23 @@ class ReynoldsParams:
     leader_weight: float = 1.0
     """Weight of the leader-following term. Study: 1.0, 1.1, 1.2."""
     horizon: float = 1.0
-    """Neighbour radius (m). Paper 1.0, original code 0.75."""
+    """Neighbour radius (m). Paper 1.0, original code 0.75. Bound to an env, the env's sensing
+    ``horizon`` unless the preset or the caller sets one (at most the env's)."""
     desired_separation: float = 0.7
     """Neighbours closer than this push away (m). Paper 0.7, original code 0.45."""
     max_speed: float = 0.5
-    """Commanded speed limit (m/s)."""
+    """Commanded speed limit (m/s). Bound to an env, the robots' ``max_speed`` unless given
+    (at most the env's)."""
     max_force: float = 0.23
     """Steering force limit (N); not stated in the paper, the original code's 0.23."""
     mass: float = 0.18
     """Mass (kg) used to integrate the steering force."""
     dt: float = 0.1
-    """Control period (s)."""
+    """Control period (s) of an unbound controller; bound to an env, always the env's ``dt``
+    (see :data:`ENV_OWNED`)."""
     startup_time: float = 2.0
-    """Zero command for this long after reset (s)."""
+    """Zero command for this long after reset (s); bound to an env, always the env's
+    ``startup_time``."""
     obstacle_avoidance: bool | None = None
     """Steer away from walls and obstacles (not in the study). None: on whenever the env's
     scene is not the study's empty arena and its observations carry static slots (the policy
@@ -803,6 +847,19 @@ PRESETS: dict[str, ReynoldsParams] = {
     "proxemic": ReynoldsParams(personal_space=1.2),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
+
+
+ENV_OWNED = tuple(f.name for f in fields(ReynoldsParams) if f.name in FIELD_OWNER)
+"""Reynolds parameters that are physical or timing quantities of the env (``horizon``,
+``max_speed``, ``dt``, ``startup_time``): the env's config owns them. A suite routes them to
+the env (every policy's episodes see them); a policy bound to an env takes them from its
+config (:func:`env_quantities`)."""
+
+
+def env_quantities(config: EnvConfig) -> dict[str, float]:
+    """The values of :data:`ENV_OWNED` in ``config``: its sensing horizon (m), robots' top
+    speed (m/s), control period (s) and start-up time (s), by Reynolds parameter name."""
+    return {name: getattr(getattr(config, FIELD_OWNER[name]), name) for name in ENV_OWNED}
 
 
 def reynolds_params(preset: str = "paper", **overrides: Any) -> ReynoldsParams:

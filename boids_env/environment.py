@@ -214,63 +214,29 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     def reset_arrays(self, seed: int | None = None, options: dict[str, Any] | None = None
                      ) -> npt.NDArray[np.float32]:
         """:meth:`reset` without dicts: the observations (F, D), one row per follower in
-        ``possible_agents`` order. Same state, same seeding, same checks."""
+        ``possible_agents`` order. Same state, same seeding, same checks.
+
+        The new episode is built aside and swapped in whole: a refused reset (a bad option,
+        random waypoints that never clear the scene, no room for the crowd, ...) raises and
+        leaves the env exactly as it was, its episode in progress, config, leader, world and
+        random stream untouched."""
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
                                  or seed < 0):
             raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
         episode = self._episode_config(options)  # validated before any state changes
         if seed is not None:
-            self._rng = np.random.default_rng(int(seed))
-        elif self._rng is None:
-            self._rng = np.random.default_rng()
-        self.episode_config = episode
-        sc, wc = episode.scenario, episode.world
-        scene = episode.scene
-        self._initial_positions = scenario.initial_positions(
-            sc, self._rng, scenario.layout_heading(sc, wc.scene, preview_path(sc, wc.dt)))
-        self._leader = make_leader(sc, self._rng, wc.dt)
-        if sc.path == "random_waypoints" and not scene.is_empty_box:
-            self._leader = redraw_clear(sc, scene, wc.robot_radius, self._leader, self._rng,
-                                        wc.dt)
-        # the person and the crowd draw from the stream only when asked for: defaults unchanged
+            rng = np.random.default_rng(int(seed))
+        else:  # an unseeded reset goes on drawing from the env's stream
+            rng = self._rng if self._rng is not None else np.random.default_rng()
+        drawn = rng.bit_generator.state
         try:
-            self._leader, self._people = make_person(sc, scene, self._leader,
-                                                     self._initial_positions, self._rng, wc.dt)
-        except ValueError:  # no room for the crowd: no half-made episode to step on
-            self._world, self.agents = None, []
+            state = self._new_episode(episode, rng, seed)
+        except BaseException:
+            rng.bit_generator.state = drawn  # a refused reset draws nothing from the stream
             raise
-        self._initial_headings = (np.full(sc.robots, self._leader.initial_heading)
-                                  if wc.drive == "unicycle" else None)
-        self._world = self._new_world()
-        self._scene = scene
-        self._step_limit = scenario.step_limit(sc, self._leader.nominal_duration, wc.dt)
-        self._tail_steps = round(sc.tail_time / wc.dt)
-        self._finish_step: int | None = None
-        # (commanded, executed, crowd, native) of every step, replayed by __setstate__
-        self._history: list[tuple[npt.NDArray[np.float64] | None,
-                                  npt.NDArray[np.float64] | None,
-                                  npt.NDArray[np.float64] | None,
-                                  npt.NDArray[np.float64] | None]] = []
-        self._counts = np.zeros((3, len(self.possible_agents)), dtype=np.int64)
-        self._observer = Observer(episode)
-        self._observer.reset(self._rng, self._leader.initial_heading)
-        self._realism: Realism | None = None
-        if episode.realism.active:  # its own stream, drawn only when on: defaults unchanged
-            rng = np.random.default_rng(self._rng.integers(2**63))
-            # stale observations draw from a stream of the episode seed alone (a ROS
-            # controller node draws the same); without a seed, from the env's stream
-            stale_seed = 0
-            if episode.realism.resolved()["stale_observations"] > 0:
-                stale_seed = int(seed) if seed is not None else int(self._rng.integers(2**63))
-            self._realism = Realism(episode.realism, sc.robots, wc.dt, sc.startup_time,
-                                    wc.robot_radius, wc.max_speed, rng, stale_seed)
-        self._reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
-        self._safety_scale = -np.array(episode.metrics.safety_weights)[:, None] * wc.dt
-        self._gap_scale = -episode.metrics.reward_gap * wc.dt
-        self._intrusion_scale = -episode.metrics.reward_intrusion * wc.dt
-        self._parked_scale = -episode.metrics.reward_parked * wc.dt
-        self._parked_steps = round(episode.metrics.parked_after / wc.dt)
-        self._still_steps = 0
+        self._rng = rng
+        self.episode_config = episode
+        self.__dict__.update(state)
         self.agents = list(self.possible_agents)
         self.overlays = {}
         obs = self._observe()
@@ -278,16 +244,55 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self.render()
         return obs
 
+    def _new_episode(self, episode: EnvConfig, rng: np.random.Generator, seed: int | None
+                     ) -> dict[str, Any]:
+        """The state of a new episode of ``episode``, drawn from ``rng``, by attribute name;
+        nothing of the env is changed (:meth:`reset_arrays` swaps it in)."""
+        sc, wc = episode.scenario, episode.world
+        scene = episode.scene
+        initial = scenario.initial_positions(
+            sc, rng, scenario.layout_heading(sc, wc.scene, preview_path(sc, wc.dt)))
+        leader = make_leader(sc, rng, wc.dt)
+        if sc.path == "random_waypoints" and not scene.is_empty_box:
+            leader = redraw_clear(sc, scene, wc.robot_radius, leader, rng, wc.dt)
+        # the person and the crowd draw from the stream only when asked for: defaults unchanged
+        leader, people = make_person(sc, scene, leader, initial, rng, wc.dt)
+        headings = (np.full(sc.robots, leader.initial_heading)
+                    if wc.drive == "unicycle" else None)
+        observer = Observer(episode)
+        state: dict[str, Any] = {
+            "_initial_positions": initial, "_leader": leader, "_people": people,
+            "_initial_headings": headings, "_scene": scene,
+            "_world": _build_world(episode, initial, headings, people),
+            "_step_limit": scenario.step_limit(sc, leader.nominal_duration, wc.dt),
+            "_tail_steps": round(sc.tail_time / wc.dt), "_finish_step": None,
+            # (commanded, executed, crowd, native) of every step, replayed by __setstate__
+            "_history": [],
+            "_counts": np.zeros((3, len(self.possible_agents)), dtype=np.int64),
+            "_observer": observer, "_realism": None,
+            "_reward_scale": metrics.reward_scale(episode.metrics, wc.dt),
+            "_safety_scale": -np.array(episode.metrics.safety_weights)[:, None] * wc.dt,
+            "_gap_scale": -episode.metrics.reward_gap * wc.dt,
+            "_intrusion_scale": -episode.metrics.reward_intrusion * wc.dt,
+            "_parked_scale": -episode.metrics.reward_parked * wc.dt,
+            "_parked_steps": round(episode.metrics.parked_after / wc.dt),
+            "_still_steps": 0}
+        observer.reset(rng, leader.initial_heading)
+        if episode.realism.active:  # its own stream, drawn only when on: defaults unchanged
+            realism_rng = np.random.default_rng(rng.integers(2**63))
+            # stale observations draw from a stream of the episode seed alone (a ROS
+            # controller node draws the same); without a seed, from the env's stream
+            stale_seed = 0
+            if episode.realism.resolved()["stale_observations"] > 0:
+                stale_seed = int(seed) if seed is not None else int(rng.integers(2**63))
+            state["_realism"] = Realism(episode.realism, sc.robots, wc.dt, sc.startup_time,
+                                        wc.robot_radius, wc.max_speed, realism_rng, stale_seed)
+        return state
+
     def _new_world(self) -> World:
-        """The episode's world at its start: a person leader and the crowd as kinematic
-        bodies when the scenario has them."""
-        cfg = self.episode_config
-        sc = cfg.scenario
-        people = self._people
-        return World(cfg.world, self._initial_positions, cfg.scene, self._initial_headings,
-                     leader_radius=None if sc.leader == "robot" else sc.person_radius,
-                     pedestrians=None if people is None else people.start_pedestrians,
-                     pedestrian_radius=sc.person_radius)
+        """The current episode's world at its start (rebuilt on unpickling)."""
+        return _build_world(self.episode_config, self._initial_positions,
+                            self._initial_headings, self._people)
 
     def _episode_config(self, options: Mapping[str, Any] | None) -> EnvConfig:
         if options is None:
@@ -365,7 +370,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         else:
             commands = clip_speed(self._observer.to_world(actions), cfg.world.max_speed)
         sc = cfg.scenario
-        if sc.startup_hold and world.time < sc.startup_time - 1e-9:
+        if sc.startup_hold and scenario.holding(world.time, sc.startup_time):
             commands = np.zeros_like(commands)
         crowd = None
         if self._people is not None:
@@ -613,6 +618,17 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self._world = self._new_world()
             for command, executed, crowd, native in self._history:
                 self._world.step(command, executed, crowd, native=native)
+
+
+def _build_world(cfg: EnvConfig, initial: npt.NDArray[np.float64],
+                 headings: npt.NDArray[np.float64] | None, people: Any) -> World:
+    """An episode's world at its start: a person leader and the crowd as kinematic bodies
+    when the scenario has them."""
+    sc = cfg.scenario
+    return World(cfg.world, initial, cfg.scene, headings,
+                 leader_radius=None if sc.leader == "robot" else sc.person_radius,
+                 pedestrians=None if people is None else people.start_pedestrians,
+                 pedestrian_radius=sc.person_radius)
 
 
 def parallel_env(render_mode: str | None = None, **kwargs: Any) -> BoidsEnv:

@@ -9,6 +9,7 @@ command, and a user's file of a similar name never is."""
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -111,3 +112,12 @@ def read_zip_entry(archive: zipfile.ZipFile, name: str, limit: int) -> bytes:
     if len(data) > limit:
         raise ValueError(f"its entry {name} inflates beyond the {limit:,} bytes allowed")
     return bytes(data)
+
+
+def file_digest(path: str | Path) -> str:
+    """The SHA-256 of a file's content (hex), read in blocks."""
+    digest = hashlib.sha256()
+    with Path(path).open("rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()

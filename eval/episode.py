@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.config import ObservationConfig
+from boids_env.config import FIELD_OWNER, EnvConfig, ObservationConfig
 from boids_env.environment import BoidsEnv
 from boids_env.policies.base import Policy
 from boids_env.recording import Recorder, Recording
@@ -40,14 +40,90 @@ def env_fields_for(policy: Policy, fields: dict[str, Any] | None = None) -> dict
     return out
 
 
+TRAINED_INTERFACE = ("dt", "frame", "relative_actions", "action", "neighbours",
+                     "velocity_bound", "sense_walls", "static_slots", "static_range",
+                     "lidar_rays", "lidar_range", "pedestrian_slots", "pedestrian_range")
+"""Env fields that fix what a learned policy's observations and actions mean (their frame,
+scale, slots and ranges, and the control period its actions were learned at). A model acts
+only in an env that has its training's values of these: its ``env_fields``, the defaults
+for the rest. The other fields are the world's conditions (speeds, scenes, noise, the safety
+filter): a case may change them (:func:`world_changes` records it)."""
+WORLD_SECTIONS = ("world", "scenario", "observation", "realism", "safety")
+"""Config sections whose fields change what happens in an episode (the metrics section
+changes only the rewards)."""
+
+
+def _value(config: EnvConfig, name: str) -> Any:
+    return getattr(getattr(config, FIELD_OWNER[name]), name)
+
+
+def check_training(policy: Policy, config: EnvConfig) -> None:
+    """``ValueError`` when ``config`` contradicts the training of ``policy`` (a learned model,
+    one with ``env_fields``) in a field of :data:`TRAINED_INTERFACE`, naming each field, the
+    trained value and the env's."""
+    fields = getattr(policy, "env_fields", None)
+    if not isinstance(fields, dict) or not getattr(policy, "training_known", True):
+        return  # not a learned model (Reynolds, random adapt to any env), or one wrapped bare
+    trained = EnvConfig.from_kwargs(**fields)
+    bad = [(n, _value(trained, n), _value(config, n)) for n in TRAINED_INTERFACE
+           if _value(trained, n) != _value(config, n)]
+    if bad:
+        said = ", ".join(f"{n}={t!r}" for n, t, _ in bad)
+        got = ", ".join(f"{n}={g!r}" for n, _, g in bad)
+        raise ValueError(f"the policy was trained with {said}; this env has {got}, which it "
+                         f"was not trained for: leave these fields to the model (its "
+                         f"env_fields {fields})")
+
+
+def world_changes(policy: Any, fields: dict[str, Any] | None = None
+                  ) -> dict[str, dict[str, list[Any]]]:
+    """What running ``policy`` changes in the world of the episodes ``fields`` ask for:
+    ``changed``, the fields its env fields (a model's, or a Reynolds policy's sensing
+    horizon) set otherwise, as ``[asked, ran]`` (its control period ``dt`` included, not its
+    own observation and action interface, which changes no one else's world);
+    ``untrained``, the fields of a model's training that ``fields`` override, as
+    ``[trained, ran]`` (the reward fields aside: they change no episode). Empty tables when
+    nothing changes."""
+    fields = dict(fields or {})
+    asked = EnvConfig.from_kwargs(**fields)
+    ran = EnvConfig.from_kwargs(**env_fields_for(policy, fields))
+    changed = {}
+    for name, section in FIELD_OWNER.items():
+        if section not in WORLD_SECTIONS or (section == "observation"
+                                             and name in TRAINED_INTERFACE):
+            continue  # rewards; the model's own sensors and actions (checked at binding)
+        if _value(asked, name) != _value(ran, name):
+            changed[name] = [_plain(_value(asked, name)), _plain(_value(ran, name))]
+    model = getattr(policy, "env_fields", None)
+    untrained = {}
+    if isinstance(model, dict):
+        trained = EnvConfig.from_kwargs(**model)
+        for name in model:
+            if FIELD_OWNER.get(name) in WORLD_SECTIONS and (
+                    _value(trained, name) != _value(ran, name)):
+                untrained[name] = [_plain(_value(trained, name)), _plain(_value(ran, name))]
+    return {"changed": changed, "untrained": untrained}
+
+
+def _plain(value: Any) -> Any:
+    """A config value as JSON has it (tuples as lists)."""
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    return value
+
+
 def bind_policy(policy: Policy, env: BoidsEnv) -> None:
     """Tells a policy that reads the env's layout (``bind``, e.g. the Reynolds policy: static
-    slots, range sensing, obstacle avoidance in scenes) which env it acts in."""
+    slots, range sensing, obstacle avoidance in scenes, the env's timing) which env it acts
+    in, after checking that the env is one it can act in: a learned model's saved layout
+    and its training (:func:`check_training`). Run, eval, the live window and the ROS
+    controller all bind through here."""
     saved = getattr(policy, "observation_layout", None)
     if saved is not None and saved != env.layout:
         raise ValueError(f"the policy reads observations laid out as {list(saved.blocks)}, the "
                          f"env gives {list(env.layout.blocks)}: make the env with the policy's "
                          f"env_fields {getattr(policy, 'env_fields', {})}")
+    check_training(policy, getattr(env, "episode_config", None) or env.config)
     bind = getattr(policy, "bind", None)
     if callable(bind):
         bind(env)

@@ -155,8 +155,16 @@ def _refusal(owner: Owner, manifest: dict[str, Any] | None, identity: dict[str, 
     held = _describe(manifest.get("identity", {}), owner)
     why = f"holds {held}, this run is {_describe(identity, owner)}"
     if held == _describe(identity, owner):
-        why += (" (same names, but the cases, policy files or presets differ)"
+        why += (" (same names, but the cases, policy files, presets or the content of the "
+                "files the cases read differ)"
                 if owner is EVAL else " (its other settings differ)")
+    held_inputs = manifest.get("identity", {}).get("inputs") or {}
+    inputs = identity.get("inputs") or {}
+    if isinstance(held_inputs, dict) and isinstance(inputs, dict):
+        edited = sorted(p for p in held_inputs.keys() & inputs.keys()
+                        if held_inputs[p] != inputs[p])
+        if edited:
+            why += f"; edited since: {edited[:3]}"
     return why
 
 
@@ -208,3 +216,13 @@ def record_files(out: Path, names: Iterable[str], owner: Owner = EVAL) -> None:
     files = list(dict.fromkeys([*manifest.get("files", []), *filter(owner.allows, names)]))
     if files != manifest.get("files"):
         write_json(out / MANIFEST, {**manifest, "files": files})
+
+
+def record_entry(out: Path, key: str, value: Any, owner: Owner = EVAL) -> None:
+    """Sets ``key`` of the folder's manifest to ``value`` (a JSON value; ``kind``,
+    ``identity`` and ``files`` are the folder's own and never set here)."""
+    if key in ("kind", "identity", "files"):
+        raise ValueError(f"manifest entry {key!r} is the folder's own")
+    manifest = read_manifest(out, owner)
+    if manifest is not None and manifest.get(key) != value:
+        write_json(out / MANIFEST, {**manifest, key: value})

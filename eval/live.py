@@ -138,24 +138,29 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
     is no display. ``trust_model``: see :func:`~boids_env.policies.registry.load_policy`'s
     ``trust``."""
     from boids_env.checks import number
+    from boids_env.config import reynolds_params
     from boids_env.environment import BoidsEnv
     from boids_env.eval.episode import bind_policy, env_fields_for
-    from boids_env.policies.registry import load_policy
+    from boids_env.policies.registry import load_policy, split_preset
     from boids_env.recording import Recorder
 
     number("fast_factor", fast_factor, 0.0, 1000.0, lo_open=True, unit="times real time")
-    overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
+    overrides: dict[str, Any] = {} if leader_weight is None else {"leader_weight": leader_weight}
+    name, chosen = split_preset(policy_spec, preset)
+    if name == "reynolds":  # the rule radius is the controller's own here, tuned live within
+        overrides["horizon"] = reynolds_params(chosen).horizon  # the wider sensing radius
     policy = load_policy(policy_spec, preset=preset, trust=trust_model, **overrides)
     fields = dict(env_fields or {})
     if getattr(policy, "params", None) is not None:
         fields.setdefault("horizon", MAX_HORIZON)  # room to raise the tuned horizon
     env = BoidsEnv(render_mode="human", **env_fields_for(policy, fields))
-    controls = LiveControls(getattr(policy, "params", None),
-                            leader_speed=env.config.scenario.leader_speed)
     external = env.config.scenario.path == "external"
     obs, _ = env.reset(seed=seed)
-    bind_policy(policy, env)  # its layout and scene (the Reynolds obstacle rule)
+    bind_policy(policy, env)  # its layout and scene, the env's timing and top speed
     policy.reset(seed)
+    # the bound parameters (the env's dt, start-up and top speed) are the ones tuned
+    controls = LiveControls(getattr(policy, "params", None),
+                            leader_speed=env.config.scenario.leader_speed)
     env.render()
     renderer = env._renderer
     recorder = Recorder()

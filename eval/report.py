@@ -20,11 +20,12 @@ import pandas as pd
 from boids_env.eval import figures
 from boids_env.eval.compare import policy_comparison, with_contacts
 from boids_env.eval.compare import verdicts as policy_verdicts
-from boids_env.eval.folder import REPORT_OUTPUTS, record_files
+from boids_env.eval.folder import REPORT_OUTPUTS, read_manifest, record_files
 from boids_env.eval.html import write_html
 from boids_env.eval.markup import escape
 from boids_env.eval.people_report import has_people, person_section
 from boids_env.eval.robot_types import robot_sections
+from boids_env.eval.runner import WORLD_CHANGES, unique_stems
 from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, pair_difference
 from boids_env.eval.study import (
     GROUP_OF_RQ,
@@ -256,10 +257,6 @@ def _md_table(df: pd.DataFrame) -> str:
     return shown.to_markdown(index=False, disable_numparse=True)
 
 
-def _slug(text: str) -> str:
-    return "".join(c if c.isalnum() or c in "._-" else "_" for c in str(text)).strip("_")
-
-
 def build_report(out: str | Path) -> Path:
     """Writes ``report.md``, ``report.html``, ``stats_anova.csv``, ``stats_tukey.csv``,
     ``safety.csv``, for the paper suite ``stats_tukey_study.csv`` and
@@ -297,6 +294,7 @@ def build_report(out: str | Path) -> Path:
         _, tukey_study = analyse(table, per_follower, followers, unwrapped=True)
         csvs["stats_tukey_study.csv"] = tukey_study
         md += robot_sections(table, tukey_study, policies, _md_table, csvs, summary)
+    md += _world_changes_section(out)
     md += ["## Results per case", "",
            f"Two alignment columns: the rule the episodes ran with ({rule}) and the study's "
            f"unwrapped rule. Distances in m.", "",
@@ -353,10 +351,11 @@ def _paper_sections(table: pd.DataFrame, tukey_study: pd.DataFrame, policies: li
           "pair agrees (significant in the same direction, or not significant). **Alignment: "
           f"{UNWRAPPED}** (|θ_leader − θ_i| without wrapping), in the verdicts and in the "
           "Tukey table behind them.", ""]
+    stems = unique_stems([(p,) for p in policies], "verdicts_")
     for policy in policies:
         v = finding_table(tukey_study, policy)
         v.insert(0, "policy", policy)
-        csvs[f"verdicts_{_slug(policy)}.csv"] = v
+        csvs[f"{stems[(policy,)]}.csv"] = v
         n_rep = int((v.verdict == "reproduced").sum())
         summary.append(f"- **{escape(policy)}**: {n_rep} of {len(v)} of the study's findings "
                        f"reproduced.")
@@ -465,13 +464,49 @@ def _study_per_follower(metric: str, followers: int) -> dict[str, np.ndarray]:
             for level, g in rows.groupby("level", sort=False)}
 
 
+def _world_changes_section(out: Path) -> list[str]:
+    """What a policy changed in the world of its own episodes (a model's env fields), and
+    which fields of a model's training a case overrode, from the folder's manifest."""
+    manifest = read_manifest(out) or {}
+    changes = manifest.get(WORLD_CHANGES)
+    if not isinstance(changes, dict) or not changes:
+        return []
+    rows = []
+    for policy, cases in changes.items():
+        for case, kinds in (cases.items() if isinstance(cases, dict) else []):
+            for kind, label in (("changed", "its env fields"),
+                                ("untrained", "the case, against its training")):
+                table = kinds.get(kind) if isinstance(kinds, dict) else None
+                for name, pair in (table.items() if isinstance(table, dict) else []):
+                    if isinstance(pair, list) and len(pair) == 2:
+                        rows.append({"policy": str(policy), "case": str(case),
+                                     "field": str(name), "set by": label,
+                                     "case asked": json.dumps(pair[0]),
+                                     "episodes ran with": json.dumps(pair[1])})
+    if not rows:
+        return []
+    return ["## Worlds changed by a policy", "",
+            "These policies' episodes did not run in the world the case describes: a model's "
+            "env fields changed it for its own episodes (*its env fields*), or the case "
+            "changed a field the model was trained with (*the case, against its training*; "
+            "for those, *case asked* is the trained value). Compare their numbers with the "
+            "other policies' knowing this.", "",
+            _md_table(pd.DataFrame(rows)), ""]
+
+
+FIXED_FIGURES = ("safety", "policies_total")
+"""Figures of every report, by stem (a policy–group figure never takes their names)."""
+
+
 def _figures(table: pd.DataFrame, suite: dict[str, Any], per_follower: tuple[str, ...],
              followers: int, fig_dir: Path, is_paper: bool, policies: list[str]) -> list[str]:
     md: list[str] = []
     study_rq = {v: k for k, v in GROUP_OF_RQ.items()}
     unwrapped_only = alignment_rule(suite) == UNWRAPPED
-    for (policy, group), rows in table.groupby(["policy", "group"], sort=False):
-        name = f"{_slug(policy)}_{_slug(group)}"
+    grouped = table.groupby(["policy", "group"], sort=False)
+    stems = unique_stems(list(grouped.groups), taken=FIXED_FIGURES)
+    for (policy, group), rows in grouped:
+        name = stems[(str(policy), str(group))]
         rq = study_rq.get(group) if is_paper else None
         if group in per_follower:
             metrics = COUNT_METRICS
@@ -508,6 +543,7 @@ def _trajectory_figures(table: pd.DataFrame, fig_dir: Path, out: Path) -> list[s
         return []
     md = ["### Sample trajectories (first seed of each case)", ""]
     shown = table.dropna(subset=["trajectory"]).drop_duplicates(["policy", "case"])
+    stems = unique_stems(list(zip(shown["policy"], shown["case"], strict=True)), "traj_")
     for _, row in shown.iterrows():
         traj = out / "trajectories" / str(row.trajectory)
         if not _own_file(out / "trajectories", str(row.trajectory)):
@@ -524,7 +560,7 @@ def _trajectory_figures(table: pd.DataFrame, fig_dir: Path, out: Path) -> list[s
                              f"shown: {exc})"))
             continue
         path = figures.trajectories(rec, f"{row.policy}: {row.case}, seed {row.seed}",
-                                    fig_dir / f"traj_{_slug(row.policy)}_{_slug(row.case)}")
+                                    fig_dir / stems[(str(row.policy), str(row.case))])
         md.append(f"![{escape(row.policy)}: {escape(row.case)}](figures/{path.name})")
     return [*md, ""]
 

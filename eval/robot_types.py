@@ -129,13 +129,16 @@ def robot_sections(table: pd.DataFrame, tukey_study: pd.DataFrame, policies: lis
           "45°). Each of the study's Tukey findings is judged per robot as for the `paper` "
           "suite (*reproduced*: our Tukey test on the same pair agrees). Alignment: the "
           "study's unwrapped rule on the commands.", ""]
+    from boids_env.eval.runner import unique_stems
+
+    stems = unique_stems([(p,) for p in policies], "robot_findings_")
     for policy in policies:
         matrix = finding_matrix(tukey_study, policy, robots)
         if matrix.empty:
             continue
         families = family_table(matrix, robots)
         matrix.insert(0, "policy", policy)
-        csvs[f"robot_findings_{_slug(policy)}.csv"] = matrix
+        csvs[f"{stems[(policy,)]}.csv"] = matrix
         counts = {r: int((matrix[r] == "reproduced").sum()) for r in robots}
         summary.append(f"- **{policy}**, the study's findings per robot: "
                        + ", ".join(f"{r} {k} of {len(matrix)}" for r, k in counts.items())
@@ -148,7 +151,3 @@ def robot_sections(table: pd.DataFrame, tukey_study: pd.DataFrame, policies: lis
                f"({', '.join(f'{r} {k} of {len(matrix)}' for r, k in counts.items())})", "",
                md_table(matrix.drop(columns=["policy"])), ""]
     return md
-
-
-def _slug(text: str) -> str:
-    return "".join(c if c.isalnum() or c in "._-" else "_" for c in str(text)).strip("_")

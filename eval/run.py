@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from boids_env.environment import BoidsEnv
-from boids_env.eval.episode import EpisodeResult, env_fields_for, run_episode
+from boids_env.eval.episode import EpisodeResult, env_fields_for, run_episode, world_changes
 from boids_env.eval.outputs import RunFolder
 from boids_env.files import write_json
 from boids_env.policies.registry import load_policy, split_preset
@@ -107,6 +107,7 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
     pol = load_policy(policy, preset=preset, trust=trust_model, **overrides)
     params = getattr(pol, "params", None)
+    changes = world_changes(pol, env_fields)  # recorded in config.json and printed
     env = BoidsEnv(**env_fields_for(pol, env_fields))
     try:
         result = run_episode(env, pol, seed, record=True)
@@ -122,13 +123,15 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         f"leader {env.config.scenario.leader_speed} m/s · seed {seed} · "
         f"episode {result.wall_time:.2f} s wall")
     say(metrics_table(result.metrics))
+    _say_changes(say, changes)
     if folder is None:
         return result
     assert result.recording is not None
     shown_preset = preset if params is not None else None
     result.recording.extra.update(policy=policy, preset=shown_preset)
     config = {"env": env.config.to_dict(), "policy": policy, "preset": shown_preset,
-              "policy_params": vars(params) if params is not None else None, "seed": seed}
+              "policy_params": vars(params) if params is not None else None, "seed": seed,
+              "model_env_fields": getattr(pol, "env_fields", None), "world_changes": changes}
     start = time.perf_counter()
     timings: list[str] = []
     with folder as tmp:
@@ -160,3 +163,12 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         + (f" ({'; '.join(timings)})" if timings else "")
         + f"; episode {result.wall_time:.2f} s")
     return result
+
+
+def _say_changes(say: Any, changes: dict[str, dict[str, list[Any]]]) -> None:
+    """Prints what the policy changed in the world asked for (see ``world_changes``)."""
+    for kind, what in (("changed", "the policy's env fields changed"),
+                       ("untrained", "the settings changed the model's training values of")):
+        if changes[kind]:
+            say(f"note: {what} " + ", ".join(f"{k} ({a!r} -> {b!r})"
+                                              for k, (a, b) in changes[kind].items()))

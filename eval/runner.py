@@ -175,6 +175,23 @@ def slug(text: str, limit: int = 60) -> str:
     return out
 
 
+def unique_stems(keys: Sequence[tuple[str, ...]], prefix: str = "",
+                 taken: Sequence[str] = ()) -> dict[tuple[str, ...], str]:
+    """A distinct file stem per key (a tuple of names, e.g. (policy, group)): ``prefix`` and
+    the names' :func:`slug` joined by ``_``. Names that differ only in what the slug drops
+    (``speed=0.3``, ``speed 0.3``) would share a file, as would a key and a ``taken`` stem:
+    each such key gets a short hash of its own names added (``p_1_g_1-3f2a9c01``), so no
+    figure or table of one name ever overwrites another's."""
+    keys = list(dict.fromkeys(tuple(str(n) for n in k) for k in keys))
+    plain = {k: prefix + "_".join(slug(n) for n in k) for k in keys}
+    uses: dict[str, int] = {}
+    for stem in [*plain.values(), *taken]:
+        uses[stem] = uses.get(stem, 0) + 1
+    return {k: stem if uses[stem] == 1 else
+            f"{stem}-{hashlib.sha256(json.dumps(k).encode()).hexdigest()[:8]}"
+            for k, stem in plain.items()}
+
+
 def trajectory_name(policy: PolicySpec, case: Case, seed: int) -> str:
     """``POLICY__CASE__seedN.parquet``, readable and filesystem-safe."""
     return f"{slug(policy.label)}__{slug(case.name)}__seed{seed}.parquet"
@@ -250,12 +267,63 @@ def _finished(out: Path, tasks: Sequence[Task]) -> dict[str, dict[str, Any]]:
 
 
 def identity(suite: Suite, policies: Sequence[PolicySpec]) -> dict[str, Any]:
-    """What makes two evaluations the same (the seeds aside: more seeds resume)."""
+    """What makes two evaluations the same (the seeds aside: more seeds resume): the cases,
+    the policies with their fingerprints, and the content of every file a case reads (a walk,
+    a map and its image, a shapes file), so an edited file is never resumed as the old one."""
     described = suite_to_dict(suite, policies)
     described.pop("seeds")
     for entry, policy in zip(described["policies"], policies, strict=True):
         entry["fingerprint"] = policy.fingerprint
+    inputs = input_digests(suite)
+    if inputs:  # absent without files: folders of file-free suites keep their identity
+        described["inputs"] = inputs
     return described
+
+
+WORLD_CHANGES = "world_changes"
+"""The manifest's entry of what each policy changes in the world of its episodes."""
+
+
+def suite_world_changes(suite: Suite, policies: Sequence[PolicySpec]
+                        ) -> dict[str, dict[str, dict[str, dict[str, list[Any]]]]]:
+    """Per policy label and case, what running the policy changes in the case's world
+    (:func:`~boids_env.eval.episode.world_changes`): only policies and cases with a change."""
+    from boids_env.eval.episode import world_changes
+
+    out: dict[str, dict[str, dict[str, dict[str, list[Any]]]]] = {}
+    for policy in policies:
+        for case in suite.cases:
+            changes = world_changes(_fields_holder(policy, case), case.env)
+            if changes["changed"] or changes["untrained"]:
+                out.setdefault(policy.label, {})[case.name] = {
+                    k: v for k, v in changes.items() if v}
+    return out
+
+
+def _fields_holder(policy: PolicySpec, case: Case) -> Any:
+    """What :func:`~boids_env.eval.episode.env_fields_for` reads of the policy a worker builds
+    for ``case``: a model's env fields from its metadata (nothing of it is loaded), else the
+    policy itself (Reynolds parameters, a ``module:object``'s own fields)."""
+    from types import SimpleNamespace
+
+    from boids_env.policies.registry import MODELS, load_policy
+
+    path = MODELS.get(policy.spec, Path(policy.spec))
+    if path.suffix == ".zip":
+        from boids_env.policies.sb3_policy import read_meta
+
+        return SimpleNamespace(env_fields=dict(read_meta(path).get("env_fields") or {}))
+    return load_policy(policy.spec, preset=policy.preset, trust=policy.trust, **case.policy)
+
+
+def input_digests(suite: Suite) -> dict[str, str]:
+    """The SHA-256 of every file the suite's cases read, by resolved path."""
+    from boids_env.config import EnvConfig
+    from boids_env.files import file_digest
+
+    files = {path for case in suite.cases
+             for path in EnvConfig().replace(**case.env).input_files()}
+    return {str(path): file_digest(path) for path in sorted(files)}
 
 
 def _check_arguments(backend: str, workers: int | None, episode_timeout: float | None
@@ -327,6 +395,8 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
     tasks = plan(policies, suite, str(out / TRAJECTORIES), keep_trajectories)
 
     folder.claim(out, identity(suite, policies), overwrite=overwrite)
+    # what a policy changes in the world of its episodes, never silent (the report shows it)
+    folder.record_entry(out, WORLD_CHANGES, suite_world_changes(suite, policies))
     done = _finished(out, tasks)
     todo = [t for t in tasks if t.key not in done]
     (out / ERRORS).unlink(missing_ok=True)

@@ -74,14 +74,22 @@ FARTHEST = 3.0
 """… and no follower farther than this (m) from the leader at any episode's end."""
 
 
-def bar_table(table: pd.DataFrame, reference: str, bars: Sequence[Bar] = BARS
+def bar_table(table: pd.DataFrame, reference: str, bars: Sequence[Bar] = BARS, *,
+              candidates: Sequence[str] | None = None, episodes: int | None = None
               ) -> pd.DataFrame:
     """One row per (candidate, bar): its value, the limit, the safety figures and whether
-    the bar (with the safety conditions) is met.
+    the bar (with the safety conditions) is met. Every candidate gets a row for every bar: a
+    case whose episodes crashed (or never ran) is a missed bar, with no value or total, and so
+    is a case with fewer episodes than expected (some crashed).
 
     Args:
-        table: the runner's results (``policy``, ``case``, the metrics; one row per episode).
+        table: the runner's results (``policy``, ``case``, the metrics; one row per finished
+            episode).
         reference: the ``policy`` label the relative bars compare against.
+        candidates: the candidates' labels (default: every other policy of the table); one
+            without any finished episode still gets its rows, every bar missed.
+        episodes: the episodes each candidate must have of each case (default: as many as
+            the reference has of the case).
     """
     frame = table.assign(total=table[list(TOTAL)].sum(axis=1))
     if reference not in set(frame["policy"]):
@@ -90,38 +98,55 @@ def bar_table(table: pd.DataFrame, reference: str, bars: Sequence[Bar] = BARS
     missing = sorted({b.case for b in bars} - set(frame["case"]))
     if missing:
         raise ValueError(f"the results have no episodes of case(s) {missing}")
+    if candidates is None:
+        candidates = [p for p in dict.fromkeys(frame["policy"]) if p != reference]
     rows = []
     for bar in bars:
         of_case = frame[frame["case"] == bar.case]
-        ref = (float(of_case[of_case["policy"] == reference][bar.metric].mean())
-               if bar.metric in of_case else float("nan"))
-        for policy, runs in of_case[of_case["policy"] != reference].groupby("policy",
-                                                                              sort=False):
-            # a metric no episode has (no parked samples: the leader never stood 5 s) is NaN,
-            # and NaN meets no bar
-            value = float(runs[bar.metric].mean()) if bar.metric in runs else float("nan")
-            safety = {key: float(runs[key].mean()) for key, _ in SAFETY}
-            farthest = float(runs["final_leader_distance_max"].max())
-            met = (bar.met(value, ref) and all(safety[k] <= lim for k, lim in SAFETY)
-                   and farthest <= FARTHEST)
-            limit = bar.limit(ref)
-            rows.append({"policy": policy, "case": bar.case, "bar": bar.text,
-                         "value": value, "limit": limit,
-                         "headroom": (limit - value) / abs(limit) if limit else float("nan"),
-                         **safety,
-                         "farthest": farthest, "total": float(runs["total"].mean()),
-                         "met": met, "episodes": len(runs)})
+        ref_runs = of_case[of_case["policy"] == reference]
+        ref = float(ref_runs[bar.metric].mean()) if bar.metric in of_case else float("nan")
+        expected = len(ref_runs) if episodes is None else episodes
+        for policy in candidates:
+            rows.append(_bar_row(bar, policy, of_case[of_case["policy"] == policy], ref,
+                                 expected))
     return pd.DataFrame(rows)
+
+
+def _bar_row(bar: Bar, policy: str, runs: pd.DataFrame, ref: float, expected: int
+             ) -> dict[str, Any]:
+    """One candidate's row for one bar from its finished episodes of the bar's case."""
+    limit = bar.limit(ref)
+    complete = len(runs) >= max(expected, 1)
+    if not complete:  # crashed (or missing) episodes: the bar is missed, no value counts
+        nan = float("nan")
+        return {"policy": policy, "case": bar.case, "bar": bar.text, "value": nan,
+                "limit": limit, "headroom": nan, **{key: nan for key, _ in SAFETY},
+                "farthest": nan, "total": nan, "met": False, "episodes": len(runs),
+                "crashed": expected - len(runs)}
+    # a metric no episode has (no parked samples: the leader never stood 5 s) is NaN, and
+    # NaN meets no bar
+    value = float(runs[bar.metric].mean()) if bar.metric in runs else float("nan")
+    safety = {key: float(runs[key].mean()) for key, _ in SAFETY}
+    farthest = float(runs["final_leader_distance_max"].max())
+    met = (bar.met(value, ref) and all(safety[k] <= lim for k, lim in SAFETY)
+           and farthest <= FARTHEST)
+    return {"policy": policy, "case": bar.case, "bar": bar.text, "value": value,
+            "limit": limit, "headroom": (limit - value) / abs(limit) if limit else float("nan"),
+            **safety, "farthest": farthest, "total": float(runs["total"].mean()),
+            "met": met, "episodes": len(runs), "crashed": 0}
 
 
 def ranking(bars: pd.DataFrame, order: str = "total") -> pd.DataFrame:
     """Candidates ranked: most bars met, then by ``order`` (:data:`ORDERS`; ties kept in
     order). ``headroom`` is each candidate's smallest headroom over the bars (NaN, a metric
-    no episode has, counts as none: minus infinity)."""
+    no episode has or a crashed case, counts as none: minus infinity); a candidate with a
+    crashed case has no summed total (NaN), ranked after those with one."""
     if order not in ORDERS:
         raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
     out = bars.groupby("policy", sort=False).agg(
-        met=("met", "sum"), bars=("met", "size"), summed_total=("total", "sum"),
+        met=("met", "sum"), bars=("met", "size"),
+        # a case that crashed has no total: the sum is NaN, and ranks after every number
+        summed_total=("total", lambda t: t.sum(skipna=False)),
         headroom=("headroom", lambda h: h.fillna(float("-inf")).min()))
     missed = bars[~bars["met"]].groupby("policy", sort=False)["case"].agg(", ".join)
     out["missed"] = missed.reindex(out.index, fill_value="")
@@ -212,7 +237,9 @@ def select(candidates: Sequence[str], out: str | Path, *, reference: str = "reyn
     table = run_suite(specs, suite, out, workers=workers, progress=progress)
     labelled = distinct_policies(specs)  # the runner's labels (a path where stems repeat)
     labels = {s.label: s.spec for s in labelled}
-    scored = bar_table(table, labelled[0].label, bars)
+    # every candidate is scored on every bar: a case whose episodes crashed is a missed bar
+    scored = bar_table(table, labelled[0].label, bars,
+                       candidates=[s.label for s in labelled[1:]], episodes=len(suite.seeds))
     ranked = ranking(scored, order)
     ranked.insert(1, "spec", [labels.get(p, p) for p in ranked["policy"]])
     ranked.insert(2, "run", [run_of(spec) for spec in ranked["spec"]])

@@ -22,8 +22,12 @@ from boids_env.config import (
 )
 from boids_env.world.robots import PRESETS as ROBOT_PRESETS
 
-POLICY_FIELDS = tuple(f.name for f in fields(ReynoldsParams))
-"""Case fields that parameterise the Reynolds policy (others are env config fields)."""
+POLICY_FIELDS = tuple(f.name for f in fields(ReynoldsParams) if f.name not in FIELD_OWNER)
+"""Case fields that parameterise the Reynolds controller only (its weights, forces, ...).
+Every other field is an env config field, the physical and timing quantities the controller
+shares with the env included (``horizon``, ``max_speed``, ``dt``, ``startup_time``: each
+routed to the env, which owns it, so every policy's episodes see it and a bound Reynolds
+policy takes it from there)."""
 
 
 @dataclass(frozen=True)

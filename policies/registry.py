@@ -71,7 +71,9 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
             :func:`~boids_env.policies.sb3_policy.load_model_policy`) or is refused with an
             error that names ``--trust-model``.
         reynolds_overrides: Reynolds parameters (e.g. ``leader_weight=1.1``); other policies
-            ignore them.
+            ignore them. The physical and timing ones (``dt``, ``startup_time``,
+            ``max_speed``, ``horizon``) belong to the env: bound, the policy takes them from
+            it and refuses a given value that conflicts (suites send them to the env).
     """
     spec, preset = split_preset(spec, preset)
     if spec == "reynolds":

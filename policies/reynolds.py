@@ -41,9 +41,17 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.config import ReynoldsParams, reynolds_params
+from boids_env.config import (
+    ENV_OWNED,
+    PRESETS,
+    EnvConfig,
+    ReynoldsParams,
+    env_quantities,
+    reynolds_params,
+)
 from boids_env.observations import ObservationLayout
 from boids_env.policies.base import BatchPolicy
+from boids_env.world.scenario import holding
 
 FloatArray = npt.NDArray[np.float64]
 RULES = ("separation", "cohesion", "alignment", "leader")
@@ -190,6 +198,35 @@ def clip_norm_each(x: FloatArray, limits: FloatArray) -> FloatArray:
     return x * scale[..., None]
 
 
+UNITS = {"dt": "s", "startup_time": "s", "max_speed": "m/s", "horizon": "m"}
+EXACT = ("dt", "startup_time")
+"""Quantities a bound controller must share with the env: its period and start-up."""
+
+
+def bound_params(params: ReynoldsParams, own: frozenset[str] | set[str], config: EnvConfig
+                 ) -> ReynoldsParams:
+    """``params`` bound to an env of ``config``: every quantity the env owns taken from it,
+    except ``max_speed`` and ``horizon`` in ``own`` (the controller's own choice, at most the
+    env's: it cannot command faster than the robots go nor see farther than the sensors).
+    ``dt`` or ``startup_time`` in ``own`` must equal the env's. A conflict is a
+    ``ValueError`` naming both values."""
+    env = env_quantities(config)
+    changes = {}
+    for name, value in env.items():
+        mine = getattr(params, name)
+        if name in own and (mine != value if name in EXACT else mine > value):
+            unit = UNITS[name]
+            need = "equal" if name in EXACT else "be at most"
+            raise ValueError(
+                f"the Reynolds policy's {name}={mine:g} {unit} conflicts with the env's "
+                f"{name}={value:g} {unit}: bound to an env, the policy's {name} must {need} "
+                f"the env's; give {name} to the env (--set {name}={mine:g}, a suite field) or "
+                f"leave it out of the policy's parameters")
+        if name not in own and mine != value:
+            changes[name] = value
+    return dataclasses.replace(params, **changes) if changes else params
+
+
 class ReynoldsPolicy(BatchPolicy):
     """Reynolds + leader controller of the study, reading observations only.
 
@@ -200,14 +237,21 @@ class ReynoldsPolicy(BatchPolicy):
 
     :meth:`bind` tells it the env's observation layout and scene (``run_episode``, the eval
     runner and the ROS controller do): then it reads static slots and range sensing, and
-    avoids obstacles in any scene but the study's arena. Unbound, it reads the study-era
-    layouts (neighbour slots, at most a wall slot) from the observation's size.
+    avoids obstacles in any scene but the study's arena, and it takes the env's control
+    period, start-up time, robots' top speed and sensing horizon (see :meth:`bind`). Unbound,
+    it reads the study-era layouts (neighbour slots, at most a wall slot) from the
+    observation's size, and its own parameters.
     """
 
     def __init__(self, preset: str = "paper", *, layout: ObservationLayout | None = None,
                  **overrides: Any) -> None:
         self.params = reynolds_params(preset, **overrides)
-        self._given = frozenset(overrides)
+        defaults = ReynoldsParams()
+        # the values the controller itself sets (given, or its preset's own): kept when bound
+        # where the env allows them, the rest taken from the env
+        self._own = frozenset(overrides) | {
+            name for name in ENV_OWNED
+            if getattr(PRESETS[preset], name) != getattr(defaults, name)}
         self.preset = preset
         self.forces: dict[str, FloatArray] = {}
         self.layout = layout
@@ -217,17 +261,19 @@ class ReynoldsPolicy(BatchPolicy):
 
     def bind(self, env: Any) -> None:
         """Reads ``env``'s observation layout, whether its scene is the study's arena (any
-        object with ``layout`` and ``config``/``episode_config``: a BoidsEnv) and its robots'
-        top speed, which becomes the controller's ``max_speed`` unless that was given (the
-        study's Sphero: 0.5 m/s either way)."""
+        object with ``layout`` and ``config``/``episode_config``: a BoidsEnv, the ROS
+        controller) and the quantities the env owns (:data:`~boids_env.config.ENV_OWNED`):
+        the control period ``dt`` and the ``startup_time`` always (one given otherwise is a
+        ``ValueError``), the robots' top speed ``max_speed`` and the sensing ``horizon``
+        unless the controller sets its own (given, or the preset's: ``boids_ros``' 0.75 m),
+        which may not exceed the env's. The study's case: the same values either way."""
         self.layout = env.layout
         config = getattr(env, "episode_config", None) or env.config
         auto = config.world.scene != "arena"
         wanted = self.params.obstacle_avoidance
         self.avoid = bool(self.layout.static) and (auto if wanted is None else wanted)
         self.pedestrian_radius = config.scenario.person_radius
-        if "max_speed" not in self._given and self.params.max_speed != config.world.max_speed:
-            self.params = dataclasses.replace(self.params, max_speed=config.world.max_speed)
+        self.params = bound_params(self.params, self._own, config)
 
     def reset(self, seed: int | None = None) -> None:
         self._steps = 0
@@ -241,11 +287,11 @@ class ReynoldsPolicy(BatchPolicy):
             raise ValueError(f"observations of size {obs.shape[1:]} do not fit the bound layout "
                              f"({layout.size} values); bind the policy to this env")
         p = self.params
-        holding = self._steps * p.dt < p.startup_time - 1e-9
+        held = holding(self._steps * p.dt, p.startup_time)
         self._steps += 1
         people = bool(layout.pedestrians)
         rules = (*RULES, OBSTACLE) if self.avoid or people else RULES
-        if holding:
+        if held:
             self.forces = {name: np.zeros((len(obs), 2)) for name in rules}
             return np.zeros((len(obs), 2), dtype=np.float32)
         slots = layout.slots(obs)

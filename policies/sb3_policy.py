@@ -219,13 +219,16 @@ class SB3Policy(BatchPolicy):
     """Deterministic actions of an SB3 model for all followers in one ``predict`` call.
 
     ``env_fields`` holds the env config fields the model's observations need (the number of
-    neighbour slots); ``boids run`` and ``boids eval`` apply them.
+    neighbour slots); ``boids run`` and ``boids eval`` apply them. They are its training's:
+    binding refuses an env that contradicts them (``eval.episode.check_training``); a model
+    wrapped without them (``env_fields=None``) has no known training and is not checked.
     """
 
     def __init__(self, model: Any, env_fields: dict[str, Any] | None = None,
                  name: str = "sb3") -> None:
         self.model = model
         self.env_fields = dict(env_fields or {})
+        self.training_known = env_fields is not None
         self.name = name
         shape = model.observation_space.shape
         self.obs_size = int(shape[0]) if shape else 0

@@ -134,7 +134,7 @@ class FlockEvalCallback(BaseCallback):
     def evaluate(self) -> dict[str, float]:
         """Runs the evaluation episodes now and records their mean V_*."""
         env = BoidsEnv(**self.env_fields)
-        policy = SB3Policy(self.model)
+        policy = SB3Policy(self.model, self.env_fields)  # the env fields it trains with
         episodes = [run_episode(env, policy, seed, record=True) for seed in self.seeds]
         env.close()
         self.last = self.num_timesteps

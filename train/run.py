@@ -131,8 +131,18 @@ RESUME_FREE = ("total_timesteps", "processes", "torch_threads", "device", "resum
 
 
 def identity(config: TrainConfig) -> dict[str, Any]:
-    """What makes two trainings the same (a resume goes on in the folder of the same one)."""
-    return {k: v for k, v in config.to_dict().items() if k not in RESUME_FREE}
+    """What makes two trainings the same (a resume goes on in the folder of the same one):
+    its config, and the content of every file its env copies read (a scene file, a map's
+    YAML and image, a recorded walk), so an edited file is never resumed as the old one."""
+    from boids_env.config import EnvConfig
+    from boids_env.files import file_digest
+
+    out = {k: v for k, v in config.to_dict().items() if k not in RESUME_FREE}
+    files = {path for spec in copy_specs(config)
+             for path in EnvConfig.from_kwargs(**spec.env_fields).input_files()}
+    if files:  # absent without files: trainings that read none keep their identity
+        out["inputs"] = {str(path): file_digest(path) for path in sorted(files)}
+    return out
 
 
 def checkpoint_timesteps(path: str | Path) -> int:

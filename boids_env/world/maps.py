@@ -4,8 +4,10 @@ A map YAML holds ``image`` (a path relative to the YAML), ``resolution`` (m per 
 ``origin`` ([x, y, yaw] of the lower-left pixel), ``negate`` (0/1), ``occupied_thresh``
 (0.65) and ``free_thresh`` (0.196); ``mode`` may be ``trinary`` (the default) or ``scale``,
 which read the thresholds the same way here. With ``negate: 0`` a pixel's occupancy is
-p = (255 − value) / 255: occupied if p > occupied_thresh, free if p < free_thresh, unknown
-between. Image row 0 is the top of the map.
+p = (white − value) / white: occupied if p > occupied_thresh, free if p < free_thresh, unknown
+between, where white is the image's own maximum (255 for 8 bits, 65535 for a 16-bit PNG, a
+PGM's maxval, whose samples are 2-byte big-endian above 255). Image row 0 is the top of the
+map.
 
 The occupied and unknown cells (and the map's border: nothing leaves the map) become static
 geometry: pymunk's marching squares (:func:`pymunk.autogeometry.march_hard`) trace the
@@ -127,19 +129,51 @@ def read_occupancy(fields: dict[str, Any], name: str = "map") -> npt.NDArray[np.
             if width * height > MAX_CELLS or width < 1 or height < 1:
                 raise ValueError(f"map {name}: image {path.name} has {width} × {height} cells; "
                                  f"at most {MAX_CELLS} are read")
-            if img.mode in ("L", "P", "1", "I", "I;16", "F"):
-                values = np.asarray(img.convert("L"), dtype=np.float64)
-            else:  # colour: map_server averages the channels
-                values = np.asarray(img.convert("RGB"), dtype=np.float64).mean(axis=2)
+            values, white = _grey_levels(img, f"map {name}: image {path.name}")
     except ValueError:
         raise
     except Exception as exc:  # Pillow raises many kinds for a bad file
         raise ValueError(f"map {name}: cannot read image {path.name} ({exc})") from None
-    p = values / 255.0 if fields["negate"] else (255.0 - values) / 255.0
+    p = values / white if fields["negate"] else (white - values) / white
     cells = np.full(p.shape, -1, dtype=np.int8)
     cells[p > fields["occupied_thresh"]] = 100
     cells[p < fields["free_thresh"]] = 0
     return cells[::-1].copy()  # image row 0 is the top; grid row 0 the bottom
+
+
+WIDE_MODES = ("I", "I;16", "I;16B", "I;16L", "I;16N")
+"""Pillow's modes of 16-bit grey images (a 16-bit PNG, a PGM with maxval above 255)."""
+
+
+def _grey_levels(img: Any, what: str) -> tuple[npt.NDArray[np.float64], float]:
+    """The image's grey levels and the level of white, its own maximum: a PGM's maxval
+    (1..65535; 2-byte samples above 255), 65535 for a 16-bit PNG, 255 for 8 bits. Colour
+    images average their channels, as ``map_server`` does."""
+    maxval = _pnm_maxval(img)  # read before decoding: Pillow drops the tile once loaded
+    if img.mode in WIDE_MODES:
+        values, full = np.asarray(img, dtype=np.float64), 65535.0
+        if values.size and not 0.0 <= values.min() <= values.max() <= full:
+            raise ValueError(f"{what}: grey levels must lie in [0, 65535], got "
+                             f"[{values.min():g}, {values.max():g}] (mode {img.mode})")
+    elif img.mode in ("L", "P", "1", "F"):
+        values, full = np.asarray(img.convert("L"), dtype=np.float64), 255.0
+    else:  # Pillow gives colour at 8 bits whatever the file's depth: white is 255
+        return np.asarray(img.convert("RGB"), dtype=np.float64).mean(axis=2), 255.0
+    if maxval is None or maxval == full:
+        return values, full
+    # Pillow stretches a PGM's levels 0..maxval to 0..full, rounded: undo it exactly (one
+    # stretched step is at least one level, so rounding back recovers every level)
+    return np.round(values * (maxval / full)), float(maxval)
+
+
+def _pnm_maxval(img: Any) -> int | None:
+    """A PGM/PPM's maxval from its header (None for other formats and bitmaps)."""
+    if img.format != "PPM" or img.mode == "1" or not img.tile:
+        return None
+    args = img.tile[0][3]  # (decoder, extents, offset, args)
+    if isinstance(args, tuple) and args and isinstance(args[-1], int):
+        return int(args[-1])  # the "ppm" decoders take (rawmode, maxval)
+    return 65535 if img.mode in WIDE_MODES else 255  # the raw decoder: maxval 255 or 65535
 
 
 def contours(cells: npt.NDArray[np.int8], resolution: float,

@@ -233,8 +233,10 @@ class People:
         if self.has_person:
             taken.append(np.asarray(self._args["person"], float).reshape(1, 2))
         starts = []
+        # centres at least two pedestrian bodies apart too (as JuPedSim demands of its agents)
+        clearance = max(CROWD_CLEARANCE, 2 * (self.radius + ROBOT_ROOM) + 1e-6)
         for _ in range(count):
-            p = self._free_point(np.concatenate(taken), CROWD_CLEARANCE)
+            p = self._free_point(np.concatenate(taken), clearance)
             starts.append(p)
             taken.append(p.reshape(1, 2))
         return starts

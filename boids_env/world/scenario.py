@@ -24,7 +24,8 @@ from boids_env.world.layout import PAPER_LAYOUTS, follower_cells, grid_cells
 
 __all__ = ["CURVE_SPEED_FACTOR", "LEADERS", "LEADER_MAX_SPEED", "PAPER_LAYOUTS", "PATHS",
            "ScenarioConfig",
-           "grid_cells", "initial_positions", "layout_extent", "layout_heading", "path_extent",
+           "grid_cells", "holding", "initial_positions", "layout_extent", "layout_heading",
+           "path_extent",
            "scene_matrix", "step_limit"]
 
 LEADER_MAX_SPEED = 2.0
@@ -334,6 +335,13 @@ def layout_heading(scenario: ScenarioConfig, scene_name: str,
         return None
     dx, dy = offsets[far[0]]
     return math.atan2(dy, dx)
+
+
+def holding(time: float, startup_time: float) -> bool:
+    """Whether the followers are held still at episode time ``time`` (s): the first
+    ``startup_time`` seconds after reset, the study's start-up (DESIGN §2). The one rule of the
+    env's ``startup_hold``, the ROS controller's and the Reynolds policy's hold."""
+    return time < startup_time - 1e-9
 
 
 def step_limit(scenario: ScenarioConfig, nominal_path_time: float | None, dt: float) -> int:

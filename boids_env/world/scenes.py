@@ -176,3 +176,16 @@ def scene_key(spec: str) -> str:
     if spec in BUILTIN or not spec:
         return spec
     return os.fspath(Path(spec).resolve())
+
+
+def scene_files(spec: str) -> tuple[Path, ...]:
+    """The files scene ``spec`` reads (resolved): none for a built-in, the shapes file, or a
+    map's YAML and its image."""
+    if spec in BUILTIN or not spec:
+        return ()
+    path = Path(spec).resolve()
+    if path.suffix.lower() in (".yaml", ".yml"):
+        from boids_env.world.maps import read_map_yaml
+
+        return path, read_map_yaml(path)["image"]
+    return (path,)

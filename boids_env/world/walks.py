@@ -31,6 +31,11 @@ def max_walk_speed(times: FloatArray, points: FloatArray) -> float:
     return float((np.hypot(steps[:, 0], steps[:, 1]) / np.diff(times)).max())
 
 
+def walk_file(path: str | Path) -> Path:
+    """The file of walk ``path`` (a shipped walk's by name, :data:`WALKS`), resolved."""
+    return WALKS.get(str(path), Path(path)).resolve()
+
+
 def read_walk(path: str | Path) -> tuple[FloatArray, FloatArray]:
     """A walk file's ``(times (M,), points (M, 2))``: a CSV with columns ``t, x, y`` (s, m),
     an optional header line, one sample per row (or a shipped walk by name, :data:`WALKS`).

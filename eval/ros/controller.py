@@ -51,6 +51,7 @@ from boids_env.policies.registry import load_policy, split_preset
 from boids_env.vectors import clip_speed
 from boids_env.world.realism import StaleObservations
 from boids_env.world.robots import make_model, quaternion_headings, to_world
+from boids_env.world.scenario import holding
 
 SYNC_MODES = ("stamp", "rate")
 FIRST_CONNECTION_WAIT = 1.0
@@ -268,7 +269,7 @@ class ControllerNode:
         sc = self.config.scenario
         if not sc.startup_hold or self._episode_start is None:
             return False
-        return (stamp - self._episode_start) / 1e9 < sc.startup_time - 1e-9
+        return holding((stamp - self._episode_start) / 1e9, sc.startup_time)
 
     def _await_listener(self) -> None:
         """Before the first command to a node that sends odometry, waits (once, at most

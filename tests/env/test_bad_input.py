@@ -252,3 +252,19 @@ def test_resets_allocate_no_new_pymunk_buffers(monkeypatch):
         e.reset(seed=seed)
         e.step(good(e))
     assert made == [], f"{len(made)} buffers made over 50 resets (pymunk never frees them)"
+
+
+def test_a_flat_field_name_in_two_config_sections_is_refused():
+    # issue 39 item 7: FIELD_OWNER was last-wins, so a name in two sections silently reached
+    # only one of them
+    from dataclasses import dataclass
+
+    from boids_env.config import FIELD_OWNER, WorldConfig, field_owners
+
+    @dataclass(frozen=True)
+    class Other:
+        dt: float = 0.05
+
+    with pytest.raises(TypeError, match="'dt' is in both 'world' and 'other'"):
+        field_owners({"world": WorldConfig, "other": Other})
+    assert FIELD_OWNER["dt"] == "world" and FIELD_OWNER["horizon"] == "observation"

@@ -265,11 +265,15 @@ def test_the_reynolds_policy_adopts_the_robot_top_speed_unless_given():
     from boids_env.policies import ReynoldsPolicy
 
     env = parallel_env(robot="turtlebot3_burger")
-    free, fixed = ReynoldsPolicy(), ReynoldsPolicy(max_speed=0.4)
+    free, fixed = ReynoldsPolicy(), ReynoldsPolicy(max_speed=0.2)
     free.bind(env)
     fixed.bind(env)
     assert free.params.max_speed == 0.22
-    assert fixed.params.max_speed == 0.4
+    assert fixed.params.max_speed == 0.2, "its own top speed, below the robot's, is kept"
+    # faster than the robot goes: refused (issue 39 item 7), no longer kept silently
+    with pytest.raises(ValueError, match=r"max_speed=0.4 m/s conflicts with the env's "
+                                         r"max_speed=0.22 m/s"):
+        ReynoldsPolicy(max_speed=0.4).bind(env)
     study = ReynoldsPolicy()
     study.bind(parallel_env())
     assert study.params == ReynoldsPolicy().params

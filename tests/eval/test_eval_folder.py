@@ -242,3 +242,49 @@ def test_a_damaged_results_table_is_refused_not_reported(tmp_path):
         if not back.equals(table):
             changed.append(int(at))
     assert not changed, f"flips at bytes {changed} of {len(raw)} changed the results"
+
+
+def _edit_walk(folder):
+    (folder / "walk.csv").write_text("t,x,y\n0,0,0\n1,0,1\n")
+
+
+def _edit_shapes(folder):
+    (folder / "room.toml").write_text('box = [-4.0, -4.0, 4.0, 4.0]\n[[circle]]\n'
+                                      'center = [3.0, 3.0]\nradius = 0.3\n')
+
+
+def _edit_map_image(folder):
+    from boids_env.world.maps import write_map
+
+    cells = np.zeros((40, 40), dtype=np.int8)
+    cells[0, :] = 100
+    write_map(folder / "map.yaml", cells, 0.25, (-5.0, -5.0, 0.0))  # same YAML, new image
+
+
+@pytest.mark.parametrize(("edit", "edited"), [(_edit_walk, "walk.csv"),
+                                              (_edit_shapes, "room.toml"),
+                                              (_edit_map_image, "map.pgm")])
+def test_a_file_a_case_reads_edited_between_runs_is_not_resumed(tmp_path, edit, edited):
+    # issue 39 item 3: the folder's identity recorded the file paths only, so a resume after
+    # editing a walk, map or shapes file mixed episodes of both versions in one results.csv
+    from boids_env.world.maps import write_map
+
+    (tmp_path / "walk.csv").write_text("t,x,y\n0,0,0\n1,1,0\n")
+    (tmp_path / "room.toml").write_text("box = [-4.0, -4.0, 4.0, 4.0]\n")
+    write_map(tmp_path / "map.yaml", np.zeros((40, 40), dtype=np.int8), 0.25, (-5.0, -5.0, 0.0))
+    spec = {"name": "files", "seeds": 1,
+            "defaults": {"robots": 3, "max_cycles": 5, "path_size": 2.0},
+            "case": [{"name": "walk", "leader": "trajectory",
+                      "leader_trajectory": str(tmp_path / "walk.csv")},
+                     {"name": "shapes", "scene": str(tmp_path / "room.toml")},
+                     {"name": "map", "scene": str(tmp_path / "map.yaml")}]}
+    out = tmp_path / "out"
+    _run(out, spec)
+    assert len(_run(out, {**spec, "seeds": 2})) == 6, "unchanged files: more seeds resume"
+    edit(tmp_path)
+    with pytest.raises(ValueError,
+                       match=rf"content of the files.*edited since: \['[^']*{edited}'\]"):
+        _run(out, {**spec, "seeds": 3})
+    assert len(read_jsonl(out / EPISODES)) == 6, "nothing of the edited files was added"
+    table = _run(out, {**spec, "seeds": 3}, overwrite=True)
+    assert len(table) == 9 and len(read_jsonl(out / EPISODES)) == 9, "all rerun"

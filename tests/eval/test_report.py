@@ -220,3 +220,61 @@ def test_two_policies_with_one_seed_give_a_report_that_says_why_there_is_no_comp
               workers=1, backend="inline", progress=False)
     report = build_report(tmp_path).read_text()
     assert "needs at least 2 seeds" in report
+
+
+def test_names_differing_only_in_punctuation_get_their_own_figures(tmp_path):
+    # issue 39 item 6: `speed=0.3` and `speed 0.3` (and policies, groups alike) slug to the
+    # same file name, so both showed the figure drawn last
+    from boids_env.eval.suites import Case
+
+    rng = np.random.default_rng(0)
+    policies = ("p=1", "p 1")
+    cases = [Case(f"speed{sep}{v}", f"g{sep}1", "leader_speed", str(v), {"robots": 4})
+             for sep in ("=", " ") for v in (0.3, 0.4)]
+    rows = [_row(rng, p, c, s) for p in policies for c in cases for s in range(3)]
+    (tmp_path / "trajectories").mkdir()
+    for k, robots in enumerate((3, 4, 5, 6)):  # a different flock in every trajectory
+        rec = run_episode(parallel_env(robots=robots, max_cycles=5), ReynoldsPolicy(),
+                          0).recording
+        rec.to_parquet(tmp_path / "trajectories" / f"t{k}.parquet")
+    shown = {(p, c): f"t{k}.parquet" for k, (p, c) in enumerate(
+        (p, c) for p in policies for c in ("speed=0.3", "speed 0.3"))}
+    table = pd.DataFrame(rows)
+    table["trajectory"] = [shown.get((r["policy"], r["case"])) if r["seed"] == 0 else None
+                           for r in rows]
+    table.to_parquet(tmp_path / "results.parquet", index=False)
+    suite = {"name": "punctuation", "seeds": [0, 1, 2], "per_follower": [],
+             "followers_analysed": 3,
+             "policies": [{"spec": p, "preset": "paper", "label": p} for p in policies],
+             "cases": [{"name": c.name, "group": c.group, "factor": c.factor,
+                        "level": c.level, "env": c.env, "policy": c.policy} for c in cases]}
+    (tmp_path / "suite.json").write_text(json.dumps(suite))
+    text = build_report(tmp_path).read_text()
+    shown_figures = re.findall(r"!\[([^\]]*)\]\(figures/([^)]+)\)", text)
+    per_pair = {alt: path for alt, path in shown_figures}
+    groups = [a for a in per_pair if ":" not in a and "Safety" not in a and "Total" not in a]
+    trajectories = [a for a in per_pair if ":" in a]
+    assert len(groups) == 4 and len(trajectories) == 4, shown_figures
+    paths = [per_pair[a] for a in groups + trajectories]
+    assert len(set(paths)) == 8, f"figures shared between names: {shown_figures}"
+    for path in paths:
+        assert (tmp_path / "figures" / path).is_file(), path
+    svgs = {(tmp_path / "figures" / per_pair[a]).with_suffix(".svg").read_text()
+            for a in trajectories}
+    assert len(svgs) == 4, "each trajectory figure draws its own flock"
+
+
+def test_file_stems_are_plain_unless_names_collide():
+    from boids_env.eval.runner import unique_stems
+
+    stems = unique_stems([("p=1",), ("p 1",), ("q",)], "verdicts_")
+    assert stems[("q",)] == "verdicts_q", "a name alone keeps its readable stem"
+    assert stems[("p=1",)] != stems[("p 1",)]
+    assert all(re.fullmatch(r"verdicts_p_1-[0-9a-f]{8}", stems[k]) for k in [("p=1",), ("p 1",)])
+    assert unique_stems([("p=1",), ("q",)])[("p=1",)] == "p_1", "no collision: no hash"
+    # a key and a fixed figure of the same stem: the key's stem changes, the figure's cannot
+    assert unique_stems([("policies", "total")], taken=("policies_total",))[
+        ("policies", "total")].startswith("policies_total-")
+    # (policy, group) pairs whose joined slugs meet
+    pairs = unique_stems([("a_b", "c"), ("a", "b_c")])
+    assert len(set(pairs.values())) == 2

@@ -219,3 +219,44 @@ def test_a_training_folder_stands_for_its_checkpoints_and_final_model(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="holds no training run"):
         expand([str(tmp_path / "empty")])
+
+
+def test_a_crashed_case_counts_as_a_missed_bar():
+    # issue 39 item 5: a candidate whose episodes crashed in a case dropped that case out of
+    # its bars (met 1 of 1) and won over one that ran every case (met 1 of 2)
+    table = _table(("R", "arena", 2.0), ("R", "arena", 2.0), ("R", "small_room", 4.0),
+                   ("R", "small_room", 4.0),
+                   ("A", "arena", 0.9), ("A", "arena", 0.9),             # met
+                   ("A", "small_room", 4.5), ("A", "small_room", 4.5),   # missed, ran
+                   ("B", "arena", 0.2), ("B", "arena", 0.2),             # met; small_room crashed
+                   ("C", "arena", 0.2),                                  # 1 of 2 episodes ran
+                   ("C", "small_room", 1.0), ("C", "small_room", 1.0))   # met
+    bars = bar_table(table, "R", TWO, candidates=["A", "B", "C", "D"])
+    got = {(r.policy, r.case): (r.met, r.episodes) for r in bars.itertuples()}
+    assert got[("B", "small_room")] == (False, 0), "a crashed case is a missed bar"
+    assert got[("C", "arena")] == (False, 1), "a case with crashed episodes is missed"
+    assert got[("C", "small_room")] == (True, 2)
+    assert got[("D", "arena")] == (False, 0) and got[("D", "small_room")] == (False, 0)
+    ranked = ranking(bars).set_index("policy")
+    assert ranked["bars"].to_dict() == {"A": 2, "B": 2, "C": 2, "D": 2}
+    assert ranked["met"].to_dict() == {"A": 1, "B": 1, "C": 1, "D": 0}
+    assert ranked.loc["B", "missed"] == "small_room" and ranked.loc["C", "missed"] == "arena"
+    # A ran everything: it comes before the candidates whose episodes crashed
+    assert list(ranking(bars)["policy"]) == ["A", "B", "C", "D"]
+    assert ranking(bars, "headroom")["policy"].iloc[0] == "A"
+    # without the candidates named, the reference's episode count is the one expected
+    assert not bar_table(table, "R", TWO).set_index(["policy", "case"]).loc[
+        ("C", "arena"), "met"]
+
+
+def test_select_never_prefers_a_candidate_whose_episodes_crashed(tmp_path):
+    # the faulty policy crashes in every episode of seed 1: it has no bar it could meet
+    suite = Suite("tiny", (Case("arena", "trained", "case", "arena", SHORT),
+                           Case("small_room", "trained", "case", "small_room",
+                                {**SHORT, "scene": "small_room"})), seeds=(1,))
+    ranked = select(["random", "faulty_policies:RaisesBaseException"], tmp_path, suite=suite,
+                    bars=TWO, progress=False, workers=1)
+    faulty = ranked.set_index("policy").loc["faulty_policies:RaisesBaseException"]
+    assert faulty["bars"] == 2 and faulty["met"] == 0, faulty.to_dict()
+    assert faulty["missed"] == "arena, small_room"
+    assert ranked["policy"].iloc[-1] == "faulty_policies:RaisesBaseException"

@@ -134,3 +134,35 @@ def test_a_huge_seed_count_is_refused_at_once(tmp_path, capsys):
     assert "seeds must be a count in [1, 10000]" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
     assert len(PAPER.with_seeds(MAX_SEEDS).seeds) == MAX_SEEDS
+
+
+def test_physical_and_timing_fields_go_to_the_env_for_every_policy(tmp_path):
+    # issue 39 item 7: horizon, max_speed, dt and startup_time went to the Reynolds
+    # parameters only: the env never saw them (max_speed = 0.3 left the robots at 0.5 m/s)
+    # and other policies dropped them
+    import numpy as np
+
+    from boids_env.eval.runner import PolicySpec, Task, run_task
+    from boids_env.eval.suites import suite_from_dict
+    from boids_env.recording import Recording
+
+    suite = suite_from_dict({"name": "t", "defaults": {"robots": 4, "max_cycles": 40},
+                             "case": [{"name": "slow", "max_speed": 0.3, "dt": 0.05,
+                                       "startup_time": 1.0, "horizon": 0.8,
+                                       "leader_weight": 1.1}]})
+    case = suite.cases[0]
+    assert case.policy == {"leader_weight": 1.1}, "only the controller's own parameter"
+    assert {k: case.env[k] for k in ("max_speed", "dt", "startup_time", "horizon")} == {
+        "max_speed": 0.3, "dt": 0.05, "startup_time": 1.0, "horizon": 0.8}
+    for spec in ("random", "reynolds"):
+        path = tmp_path / f"{spec}.parquet"
+        run_task(Task(PolicySpec(spec), case, 0, str(path)))
+        rec = Recording.from_parquet(path)
+        world = rec.config.world
+        assert (world.max_speed, world.dt) == (0.3, 0.05), spec
+        assert rec.config.observation.horizon == 0.8, spec
+        assert rec.time[1] == pytest.approx(0.05), spec
+        speeds = np.hypot(rec.commanded[1:, 1:, 0], rec.commanded[1:, 1:, 1])
+        assert speeds.max() <= 0.3 + 1e-9, (spec, speeds.max())
+        if spec == "reynolds":  # held for the env's start-up (20 periods of 0.05 s), then moving
+            assert not speeds[:20].any() and speeds[20:].any(), speeds.max(axis=1).tolist()

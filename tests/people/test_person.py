@@ -229,3 +229,16 @@ def test_a_crowd_that_does_not_fit_is_refused_and_leaves_no_episode():
         env.reset(seed=0)
     with pytest.raises(RuntimeError, match=r"call reset\(\) first"):
         env.step({})
+
+
+def test_wide_pedestrians_start_apart_or_are_refused_never_a_crash():
+    # person_radius 0.5: JuPedSim's agents (0.55 m with the robots' room) need centres
+    # 1.1 m apart; the crowd's starts were drawn 1.0 m apart and JuPedSim raised RuntimeError
+    from boids_env import parallel_env
+
+    env = parallel_env(scene="small_room", crowd=3, max_cycles=5)
+    env.reset(seed=0)
+    env.reset(seed=1, options={"person_radius": 0.5})
+    positions = env._people.pedestrians
+    gaps = [np.hypot(*(a - b)) for k, a in enumerate(positions) for b in positions[k + 1:]]
+    assert min(gaps) >= 1.1, gaps

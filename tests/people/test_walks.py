@@ -81,3 +81,19 @@ def test_the_shipped_walk_is_what_its_generator_records():
     from example_walk import example_walk
 
     assert WALKS["doorway_walk"].read_text() == example_walk()
+
+
+@pytest.mark.parametrize("start", ["0,0", "0.5,0"])
+def test_a_walk_through_the_arena_wall_is_refused_wherever_it_starts(tmp_path, start):
+    # issue 39 item 1: a walk starting exactly at (0, 0) in the default arena skipped the
+    # scene check and walked through the wall at x = 5 m to (30, 0)
+    path = write(tmp_path, f"t,x,y\n0,{start}\n60,30,0\n")
+    with pytest.raises(ValueError, match=r"the walk .*walk.csv reaches \(30.00, 0.00\), "
+                                         r"within .* of the east wall"):
+        EnvConfig.from_kwargs(leader="trajectory", leader_trajectory=path)
+
+
+def test_a_walk_inside_the_arena_from_the_origin_is_accepted(tmp_path):
+    path = write(tmp_path, "t,x,y\n0,0,0\n10,3,0\n")
+    config = EnvConfig.from_kwargs(leader="trajectory", leader_trajectory=path)
+    assert config.scenario.start == (0.0, 0.0)

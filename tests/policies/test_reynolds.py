@@ -102,3 +102,53 @@ def test_leader_speed_trade_off_of_the_study():
     slow, fast = v(0.5), v(0.6)
     assert slow[0] > fast[0], f"V_sep 0.5 m/s {slow[0]} vs 0.6 m/s {fast[0]}"
     assert fast[1] > slow[1], f"V_coh 0.6 m/s {fast[1]} vs 0.5 m/s {slow[1]}"
+
+
+@pytest.mark.parametrize(("dt", "startup_time"), [(0.05, 2.0), (0.1, 3.0), (0.05, 0.5)])
+def test_a_bound_policy_takes_dt_and_the_start_up_hold_from_the_env(dt, startup_time):
+    # issue 39 item 7: bound to an env with dt=0.05 it integrated with 0.1 s; with
+    # startup_time=3 it held its followers 2 s
+    env = parallel_env(robots=7, dt=dt, startup_time=startup_time)
+    policy = ReynoldsPolicy()
+    obs, _ = env.reset(seed=0)
+    from boids_env.eval.episode import bind_policy
+
+    bind_policy(policy, env)  # as run_episode, the eval runner and the ROS controller do
+    policy.reset(0)
+    held = round(startup_time / dt)  # whole control periods of the hold
+    for step in range(held + 3):
+        snap = env.snapshot()
+        act = policy.act(obs)
+        got = np.array([act[a] for a in env.agents], dtype=np.float64)
+        if step < held:
+            assert not got.any(), f"step {step}: held until {startup_time} s"
+        else:
+            p = reynolds_params("paper", dt=dt)  # the study's controller at the env's period
+            want = reference(snap.positions, snap.velocities, p)
+            assert np.abs(got - want).max() < 1e-5, (step, got.tolist(), want.tolist())
+            assert got.any(), f"step {step}: moving after the hold"
+        obs, *_ = env.step(act)
+
+
+@pytest.mark.parametrize(("given", "env_fields", "match"), [
+    ({"dt": 0.05}, {}, r"dt=0.05 s .* the env's dt=0.1 s"),
+    ({"startup_time": 0.0}, {}, r"startup_time=0 s .* the env's startup_time=2 s"),
+    ({"max_speed": 0.4}, {"max_speed": 0.3}, r"max_speed=0.4 m/s .* the env's max_speed=0.3"),
+    ({"horizon": 1.5}, {}, r"horizon=1.5 m .* the env's horizon=1 m"),
+])
+def test_a_policy_whose_timing_conflicts_with_the_env_is_refused(given, env_fields, match):
+    policy = ReynoldsPolicy(**given)
+    with pytest.raises(ValueError, match=match):
+        policy.bind(parallel_env(robots=4, **env_fields))
+
+
+def test_own_values_within_the_env_are_kept_and_the_rest_taken_from_it():
+    env = parallel_env(robots=4, max_speed=0.4, horizon=1.5, dt=0.05, startup_time=1.0)
+    policy = ReynoldsPolicy("boids_ros", max_speed=0.3)  # its own horizon 0.75, speed 0.3
+    policy.bind(env)
+    p = policy.params
+    assert (p.dt, p.startup_time, p.max_speed, p.horizon) == (0.05, 1.0, 0.3, 0.75)
+    paper = ReynoldsPolicy()
+    paper.bind(env)
+    p = paper.params
+    assert (p.dt, p.startup_time, p.max_speed, p.horizon) == (0.05, 1.0, 0.4, 1.5)

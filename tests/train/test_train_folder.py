@@ -108,3 +108,21 @@ def test_a_resume_goes_on_in_its_folder_and_never_tears_the_model(tmp_path, monk
     assert sorted(p.name for p in (out / "tb").iterdir()) == ["run_1"], "logs go on"
     assert not [p for p in out.rglob(".*") if p.name != ".boids-temporary"], \
         "no temporary left"
+
+
+def test_a_trainings_identity_covers_the_content_of_the_files_it_reads(tmp_path):
+    # issue 39 item 3, for trainings: a resume after editing a scene file would go on in a
+    # world other than the one the checkpoint learned
+    from boids_env.train.config import TrainConfig
+    from boids_env.train.run import identity
+
+    room = tmp_path / "room.toml"
+    room.write_text("box = [-4.0, -4.0, 4.0, 4.0]\n[defaults]\npath_size = 2.0\n")
+    config = TrainConfig(worlds=({"scene": str(room)},))
+    before = identity(config)
+    assert str(room) in before["inputs"]
+    assert identity(config) == before
+    room.write_text("box = [-4.0, -4.0, 4.0, 4.0]\n[[circle]]\ncenter = [3.0, 3.0]\n"
+                    "radius = 0.2\n[defaults]\npath_size = 2.0\n")
+    assert identity(config) != before, "the same path, another scene"
+    assert "inputs" not in identity(TrainConfig()), "no file: the identity it had"

@@ -38,6 +38,53 @@ def test_cells_follow_the_thresholds_negate_and_row_order(tmp_path):
     assert negated.tolist() == [[-1, -1, 100], [0, 100, 100]]
 
 
+def _pgm(path, pixels, maxval):
+    """A binary PGM of ``pixels`` (rows from the top) with its own maxval: 2-byte big-endian
+    samples above 255, as the format specifies."""
+    pixels = np.asarray(pixels)
+    h, w = pixels.shape
+    body = pixels.astype(">u2" if maxval > 255 else "u1").tobytes()
+    path.write_bytes(f"P5\n{w} {h}\n{maxval}\n".encode() + body)
+
+
+# the 8-bit map of the test above: 0 occupied, 254 free, 205 unknown (p = 0.196, not below
+# free_thresh), 100 unknown (p = 0.61), 80 occupied (p = 0.686)
+PIXELS8 = [[0, 254, 205], [100, 80, 254]]
+CELLS8 = [[-1, 100, 0], [100, 0, -1]]
+
+
+@pytest.mark.parametrize("negate", [0, 1])
+def test_16_bit_maps_read_as_their_8_bit_copy(tmp_path, negate):
+    # issue 39 item 2: every 16-bit level above 255 read as free, so grey walls and unknown
+    # space vanished. v * 257 is the same level at 16 bits (255 * 257 = 65535).
+    want = maps.read_occupancy(maps.read_map_yaml(_map(tmp_path, PIXELS8, negate=negate)))
+    assert want.tolist() == (CELLS8 if not negate else [[-1, -1, 100], [0, 100, 100]])
+    wide = np.asarray(PIXELS8) * 257
+    _pgm(tmp_path / "m.pgm", wide, 65535)
+    cells = maps.read_occupancy(maps.read_map_yaml(tmp_path / "m.yaml"))
+    assert cells.tolist() == want.tolist(), "16-bit PGM"
+    Image.fromarray(wide.astype(np.uint16)).save(tmp_path / "m.png")
+    assert Image.open(tmp_path / "m.png").mode.startswith("I"), "a 16-bit grey PNG"
+    yaml = (tmp_path / "m.yaml").read_text().replace('"m.pgm"', '"m.png"')
+    (tmp_path / "m.yaml").write_text(yaml)
+    cells = maps.read_occupancy(maps.read_map_yaml(tmp_path / "m.yaml"))
+    assert cells.tolist() == want.tolist(), "16-bit PNG"
+
+
+def test_a_pgm_is_read_on_its_own_maxval(tmp_path):
+    # maxval 1000: p = (1000 - v) / 1000. 349 -> 0.651 occupied, 350 -> 0.65 unknown (not
+    # above occupied_thresh), 804 -> 0.196 unknown (not below free_thresh), 805 -> 0.195 free;
+    # 500 -> 0.5 unknown. Pillow stretches the levels to 0..65535 with rounding, which must
+    # not move a level across a threshold.
+    yaml = _map(tmp_path, [[0]])
+    _pgm(tmp_path / "m.pgm", [[349, 350, 804, 805, 500, 1000]], 1000)
+    cells = maps.read_occupancy(maps.read_map_yaml(yaml))
+    assert cells.tolist() == [[100, -1, -1, 0, -1, 0]]
+    _pgm(tmp_path / "m.pgm", [[34, 35, 80, 81, 0, 100]], 100)  # an 8-bit maxval below 255
+    cells = maps.read_occupancy(maps.read_map_yaml(yaml))
+    assert cells.tolist() == [[100, -1, -1, 0, 100, 0]]
+
+
 def test_the_origin_places_the_cells_in_the_world(tmp_path):
     scene = maps.load_map(_map(tmp_path, [[0, 254, 254], [254, 254, 254]]))
     # origin (1, -2), 0.5 m cells; the occupied cell is the top-left one: x 1..1.5, y -1.5..-1
