@@ -27,6 +27,7 @@ import os
 import reprlib
 import stat
 import tomllib
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +37,10 @@ MAX_ALIASES = 64
 """Most YAML aliases (``*name``) in one document (ROS map YAMLs use none)."""
 MAX_NODES = 100_000
 """Most values a YAML document may expand to, aliases counted as often as they are used."""
+MAX_MODEL_BYTES = 512 * 1024 * 1024
+"""A model zip larger than this (512 MiB) is refused before it is opened (ours are 1-5 MB)."""
+MAX_ZIP_ENTRIES = 1000
+"""Most entries in a model zip (SB3 writes 5, ``boids train`` 7)."""
 MAX_NAME = 100
 """Longest name (characters) a file may give a suite, a case or a scene."""
 EXCERPT = 60
@@ -141,6 +146,38 @@ def read_bytes(path: str | Path, field: str, limit: int) -> bytes:
     if size > limit:
         raise ValueError(f"{where}: more than the {limit:,} bytes allowed")
     return b"".join(chunks)
+
+
+def check_file(path: str | Path, field: str, limit: int) -> int:
+    """The size of ``path`` if it is a regular file of at most ``limit`` bytes (checked
+    without reading it or blocking), else the ``ValueError`` of :func:`read_bytes`."""
+    where = f"{field} {quote_path(path)}"
+    try:
+        info = os.stat(path)
+    except OSError as exc:
+        raise ValueError(f"{where}: cannot be read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ValueError(f"{where}: not a regular file (a {_kind(info.st_mode)})")
+    if info.st_size > limit:
+        raise ValueError(f"{where}: {info.st_size:,} bytes, more than the {limit:,} allowed")
+    return info.st_size
+
+
+def open_zip(path: str | Path, field: str = "policy model",
+             limit: int = MAX_MODEL_BYTES) -> zipfile.ZipFile:
+    """``path`` opened as a zip for reading, once it is known to be a regular file of at most
+    ``limit`` bytes with at most :data:`MAX_ZIP_ENTRIES` entries (a FIFO or ``/dev/zero``
+    never reaches :mod:`zipfile`, which reads to the end of what it is given). Read entries
+    with :func:`boids_env.files.read_zip_entry`, which bounds what each inflates to.
+    ``ValueError`` naming ``field`` otherwise; a file that is not a zip raises what
+    :class:`zipfile.ZipFile` raises."""
+    check_file(path, field, limit)
+    archive = zipfile.ZipFile(path)  # its own errors (BadZipFile, ...) as they are
+    if len(archive.filelist) > MAX_ZIP_ENTRIES:
+        archive.close()
+        raise ValueError(f"{field} {quote_path(path)}: {len(archive.filelist):,} entries, more "
+                         f"than the {MAX_ZIP_ENTRIES:,} allowed")
+    return archive
 
 
 def read_text(path: str | Path, field: str, limit: int) -> str:

@@ -44,6 +44,7 @@ from boids_env.eval.pool import (
 from boids_env.eval.progress import bar as progress_bar
 from boids_env.eval.suites import Case, Suite
 from boids_env.files import append_line, atomic_path, write_json
+from boids_env.untrusted import MAX_MODEL_BYTES, check_file
 
 EPISODES = "episodes.jsonl"
 ERRORS = "errors.jsonl"
@@ -91,7 +92,9 @@ class PolicySpec:
         if path.suffix == ".zip" and path.is_file():
             from boids_env.policies.sb3_policy import has_numpy_actor
 
-            digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+            check_file(path, "policy model", MAX_MODEL_BYTES)  # not a device, not huge
+            with open(path, "rb") as fh:
+                digest = hashlib.file_digest(fh, "sha256").hexdigest()[:16]
             trusted = self.trust and not has_numpy_actor(path)
             return f"{self.spec}#{digest}" + ("#trusted" if trusted else "")
         return f"{self.spec}|{self.preset}"
