@@ -240,7 +240,10 @@ def parse_yaml(text: str, field: str) -> Any:
     of it is built."""
     import yaml
 
-    loader = _bounded_loader(yaml)(text)
+    try:
+        loader = _bounded_loader(yaml)(text)
+    except yaml.YAMLError as exc:  # the reader checks the characters up front
+        raise ValueError(f"{field}: not valid YAML ({excerpt(str(exc), 120)})") from None
     try:
         node = loader.get_single_node()
         if node is None:
