@@ -100,6 +100,18 @@ class PolicySpec:
         return f"{self.spec}|{self.preset}"
 
 
+def _check_model_fits(policy: PolicySpec, suite: Suite) -> None:
+    """A model's weights loaded and its observation size checked against every case here,
+    once, rather than found failing in every episode."""
+    from boids_env.eval.episode import check_fits
+    from boids_env.policies.registry import MODELS, load_policy
+
+    if not (policy.spec.endswith(".zip") or policy.spec in MODELS):
+        return
+    loaded = load_policy(policy.spec, preset=policy.preset, trust=policy.trust)
+    check_fits(loaded, [case.env for case in suite.cases])
+
+
 def distinct_policies(policies: Sequence[PolicySpec]) -> list[PolicySpec]:
     """The policies with distinct labels: a spec given twice is a ``ValueError``; model files
     of the same name in different folders are labelled by their path."""
@@ -318,6 +330,7 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
 
         for policy in policies:
             check_policy_spec(policy.spec, policy.preset, trust=policy.trust)
+            _check_model_fits(policy, suite)
     run = runner or run_task
     if backend == "process":
         try:
