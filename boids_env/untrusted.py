@@ -94,13 +94,17 @@ def quote_path(path: str | Path, limit: int = 200) -> str:
 def safe_name(value: Any, field: str, limit: int = MAX_NAME) -> str:
     """A name from a file, checked and made safe for terminals, file names and CSVs: a
     non-empty string of at most ``limit`` characters (else ``ValueError`` naming ``field``),
-    returned with its control characters escaped (``\\x1b`` for ESC)."""
+    returned with line breaks and tabs as spaces and its other control characters escaped
+    (``\\x1b`` for ESC)."""
     if not isinstance(value, str) or not value:
         raise ValueError(f"{field} must be a non-empty string, got {excerpt(value)}")
     if len(value) > limit:
         raise ValueError(f"{field} must be at most {limit} characters, got {len(value)} "
                          f"({excerpt(value)})")
-    return _escape(value)
+    return _escape(value.translate(_SPACES))
+
+
+_SPACES = str.maketrans("\t\n\r\v\f", "     ")
 
 
 def _kind(mode: int) -> str:
