@@ -102,11 +102,12 @@ class PolicySpec:
 
 def _check_model_fits(policy: PolicySpec, suite: Suite) -> None:
     """A model's weights loaded and its observation size checked against every case here,
-    once, rather than found failing in every episode."""
+    once, rather than found failing in every episode. Not for a trusted zip: loading it runs
+    what its pickles hold, which stays in the workers."""
     from boids_env.eval.episode import check_fits
     from boids_env.policies.registry import MODELS, load_policy
 
-    if not (policy.spec.endswith(".zip") or policy.spec in MODELS):
+    if policy.trust or not (policy.spec.endswith(".zip") or policy.spec in MODELS):
         return
     loaded = load_policy(policy.spec, preset=policy.preset, trust=policy.trust)
     check_fits(loaded, [case.env for case in suite.cases])
