@@ -129,6 +129,33 @@ def bind_policy(policy: Policy, env: BoidsEnv) -> None:
         bind(env)
 
 
+def check_fits(policy: Policy, envs: list[dict[str, Any]]) -> None:
+    """Raises, before any episode runs, the ``ValueError`` acting in each env of ``envs``
+    (env config fields, e.g. a suite's cases) would raise: observations laid out other than
+    the policy reads them, or of a size its network does not take. Each distinct env is built
+    once (not reset)."""
+    seen: set[str] = set()
+    for fields in envs:
+        merged = env_fields_for(policy, fields)
+        key = repr(sorted(merged.items()))
+        if key in seen:
+            continue
+        seen.add(key)
+        env = BoidsEnv(**merged)
+        try:
+            saved = getattr(policy, "observation_layout", None)
+            if saved is not None and saved != env.layout:
+                bind_policy(policy, env)  # raises the layout mismatch, named
+            size = getattr(policy, "obs_size", None)
+            given = int(env.observation_space(env.possible_agents[0]).shape[0])
+            if size is not None and int(size) != given:
+                raise ValueError(f"the policy's network takes observations of size {size}, "
+                                 f"the env gives {given} (env fields {fields}): the model was "
+                                 f"trained with other observation settings")
+        finally:
+            env.close()
+
+
 def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
                 options: dict[str, Any] | None = None, record: bool = True,
                 frame_every: int = 0) -> EpisodeResult:

@@ -21,6 +21,7 @@ replacement worker is ready in milliseconds; otherwise they are spawned.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
 import signal
@@ -28,7 +29,7 @@ import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from typing import Any
@@ -102,7 +103,10 @@ def _worker(conn: Connection, alive: Connection, fn: Callable[[Any], dict[str, A
     """A worker's loop: receive an item, send its outcome, until told to stop (None)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_exit_with_parent, args=(alive,), daemon=True).start()
-    conn.send(READY)
+    try:
+        conn.send(READY)
+    except OSError:  # the caller is gone already (interrupted while this one started)
+        return
     while True:
         try:
             item = conn.recv()
@@ -123,6 +127,31 @@ def _worker(conn: Connection, alive: Connection, fn: Callable[[Any], dict[str, A
             # process to stop. Honour it after reporting; the caller retires this worker (it
             # saw "fatal") and a fresh one takes the next item.
             os._exit(0)
+
+
+@contextlib.contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """SIGINT blocked in this thread while a worker (and, the first time, the forkserver)
+    starts. A started process inherits the mask, so a Ctrl-C during its interpreter's
+    start-up or the forkserver's preload stays pending there instead of killing it mid-import
+    ('Fatal Python error: init_import_site'); the forkserver and the workers then ignore
+    SIGINT, which discards it. Here the pending interrupt is delivered when the mask is
+    restored: the caller gets its KeyboardInterrupt right after the start.
+
+    The resource tracker is started first: starting it unblocks SIGINT on the way out
+    (:mod:`multiprocessing.resource_tracker` blocks it around its own start), which would
+    open the window again for the forkserver started next."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def context() -> Any:
@@ -151,7 +180,8 @@ class _Slot:
         alive_r, alive_w = ctx.Pipe(duplex=False)
         process = ctx.Process(target=_worker, args=(theirs, alive_r, fn),
                               name="boids-eval-worker")
-        process.start()
+        with _sigint_blocked():
+            process.start()
         theirs.close()
         alive_r.close()
         return cls(process, ours, alive_w)

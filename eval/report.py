@@ -10,7 +10,6 @@ CSVs an earlier build wrote that this one does not (another suite's verdicts).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +40,7 @@ from boids_env.files import atomic_path, write_text
 from boids_env.metrics import SAFETY_KEYS
 from boids_env.parquet import read_table
 from boids_env.recording import Recording
+from boids_env.untrusted import parse_json, read_text
 
 __all__ = ["build_report", "load_results", "policy_comparison", "safety_table",
            "study_side_by_side", "summary_table"]
@@ -71,7 +71,7 @@ def load_results(out: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
                                 f"first")
     try:
         table = read_table(path).to_pandas()  # checksums verified
-        suite = json.loads((out / "suite.json").read_text())
+        suite = parse_json(read_text(out / "suite.json", "suite.json", 16 << 20), "suite.json")
     except (OSError, ValueError) as exc:
         raise ValueError(f"cannot read the results in {out}: {exc}") from exc
     if table.empty:

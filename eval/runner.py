@@ -44,6 +44,7 @@ from boids_env.eval.pool import (
 from boids_env.eval.progress import bar as progress_bar
 from boids_env.eval.suites import Case, Suite
 from boids_env.files import append_line, atomic_path, write_json
+from boids_env.untrusted import MAX_MODEL_BYTES, check_file
 
 EPISODES = "episodes.jsonl"
 ERRORS = "errors.jsonl"
@@ -91,10 +92,25 @@ class PolicySpec:
         if path.suffix == ".zip" and path.is_file():
             from boids_env.policies.sb3_policy import has_numpy_actor
 
-            digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+            check_file(path, "policy model", MAX_MODEL_BYTES)  # not a device, not huge
+            with open(path, "rb") as fh:
+                digest = hashlib.file_digest(fh, "sha256").hexdigest()[:16]
             trusted = self.trust and not has_numpy_actor(path)
             return f"{self.spec}#{digest}" + ("#trusted" if trusted else "")
         return f"{self.spec}|{self.preset}"
+
+
+def _check_model_fits(policy: PolicySpec, suite: Suite) -> None:
+    """A model's weights loaded and its observation size checked against every case here,
+    once, rather than found failing in every episode. Not for a trusted zip: loading it runs
+    what its pickles hold, which stays in the workers."""
+    from boids_env.eval.episode import check_fits
+    from boids_env.policies.registry import MODELS, load_policy
+
+    if policy.trust or not (policy.spec.endswith(".zip") or policy.spec in MODELS):
+        return
+    loaded = load_policy(policy.spec, preset=policy.preset, trust=policy.trust)
+    check_fits(loaded, [case.env for case in suite.cases])
 
 
 def distinct_policies(policies: Sequence[PolicySpec]) -> list[PolicySpec]:
@@ -383,6 +399,7 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
 
         for policy in policies:
             check_policy_spec(policy.spec, policy.preset, trust=policy.trust)
+            _check_model_fits(policy, suite)
     run = runner or run_task
     if backend == "process":
         try:

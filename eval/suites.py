@@ -7,7 +7,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import numbers
-import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -20,6 +19,7 @@ from boids_env.config import (
     check_integer,
     reynolds_params,
 )
+from boids_env.untrusted import excerpt, parse_toml, quote_path, read_text, safe_name
 from boids_env.world.robots import PRESETS as ROBOT_PRESETS
 
 POLICY_FIELDS = tuple(f.name for f in fields(ReynoldsParams) if f.name not in FIELD_OWNER)
@@ -56,8 +56,23 @@ MAX_SEEDS = 10_000
 episodes on 2 cores); more is refused before anything is allocated."""
 BLOCK_SIZE = 5
 """Seeds in one block of ``boids eval --blocks``: the study's runs per case."""
+MAX_CASES = 1000
+"""Most cases a suite may have (the largest built-in has 30); more is refused before any is
+validated."""
+MAX_SUITE_BYTES = 1024 * 1024
+"""A suite file larger than this (1 MiB) is refused before it is read."""
 MAX_SEED = 2**32 - 1
 """Largest seed value (numpy's legacy seeding range, which every consumer accepts)."""
+
+
+def _check_unique(names: list[str]) -> None:
+    """``ValueError`` quoting a few of the repeated names (never the whole list)."""
+    counts: dict[str, int] = {}
+    for n in names:
+        counts[n] = counts.get(n, 0) + 1
+    twice = sorted(n for n, k in counts.items() if k > 1)
+    if twice:
+        raise ValueError(f"case names must be unique; {len(twice)} repeated: {excerpt(twice)}")
 
 
 @dataclass(frozen=True)
@@ -78,9 +93,7 @@ class Suite:
         cases = _sequence("cases", self.cases)
         if not cases or not all(isinstance(c, Case) for c in cases):
             raise ValueError(f"cases must be a non-empty sequence of Case, got {self.cases!r}")
-        names = [c.name for c in cases]
-        if len(set(names)) != len(names):
-            raise ValueError(f"case names must be unique, got {names}")
+        _check_unique([c.name for c in cases])
         object.__setattr__(self, "cases", cases)
         object.__setattr__(self, "seeds", check_seeds(self.seeds))
         groups = _sequence("per_follower", self.per_follower)
@@ -132,10 +145,10 @@ def check_seeds(seeds: Any) -> tuple[int, ...]:
                f"integers in [0, {MAX_SEED}]")
     if isinstance(seeds, numbers.Integral) and not isinstance(seeds, bool):
         if not 1 <= int(seeds) <= MAX_SEEDS:
-            raise ValueError(f"seeds must be {allowed}, got {seeds!r}")
+            raise ValueError(f"seeds must be {allowed}, got {excerpt(seeds)}")
         return tuple(range(int(seeds)))
     if isinstance(seeds, str | bytes) or not isinstance(seeds, Sequence):
-        raise ValueError(f"seeds must be {allowed}, got {seeds!r}")
+        raise ValueError(f"seeds must be {allowed}, got {excerpt(seeds)}")
     if not 1 <= len(seeds) <= MAX_SEEDS:
         raise ValueError(f"seeds must be {allowed}, got {len(seeds)} seeds")
     bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, numbers.Integral)
@@ -360,17 +373,15 @@ def load_suite(spec: str | Path) -> Suite:
     if isinstance(spec, str) and spec in SUITES:
         return SUITES[spec]
     path = Path(spec)
-    if not path.is_file():
+    if not path.exists():
         raise FileNotFoundError(f"suite must be one of {sorted(SUITES)} or a TOML file; "
-                                f"{spec} not found")
-    try:
-        data = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
-        raise ValueError(f"cannot read suite file {path}: {exc}") from exc
+                                f"{quote_path(spec)} not found")
+    data = parse_toml(read_text(path, "cannot read suite file", MAX_SUITE_BYTES),
+                      f"cannot read suite file {quote_path(path)}")
     try:
         return suite_from_dict(data, default_name=path.stem)
     except ValueError as exc:
-        raise ValueError(f"suite file {path}: {exc}") from None
+        raise ValueError(f"suite file {quote_path(path)}: {exc}") from None
 
 
 SUITE_KEYS = ("name", "seeds", "defaults", "factor", "case", "per_follower",
@@ -383,7 +394,8 @@ def suite_from_dict(data: dict[str, Any], default_name: str = "custom") -> Suite
     """Builds and validates a suite from the TOML structure of :func:`load_suite`; every
     mistake is a ``ValueError`` naming the key and what is allowed."""
     if not isinstance(data, dict):
-        raise ValueError(f"a suite must be a table of keys {list(SUITE_KEYS)}, got {data!r}")
+        raise ValueError(f"a suite must be a table of keys {list(SUITE_KEYS)}, got "
+                         f"{excerpt(data)}")
     unknown = sorted(set(data) - set(SUITE_KEYS))
     if unknown:
         raise ValueError(f"unknown suite key(s) {unknown}; allowed: {sorted(SUITE_KEYS)}")
@@ -394,22 +406,21 @@ def suite_from_dict(data: dict[str, Any], default_name: str = "custom") -> Suite
              *_explicit_cases(data.get("case", []), defaults)]
     if not cases:
         raise ValueError("a suite needs at least one [[factor]] or [[case]]")
+    if len(cases) > MAX_CASES:
+        raise ValueError(f"{len(cases):,} cases, more than the {MAX_CASES:,} allowed")
+    cases = [_safe_labels(case) for case in cases]
     for case in cases:
         try:
             EnvConfig().replace(**case.env)
             reynolds_params("paper", **case.policy)
         except (ValueError, TypeError) as exc:
             raise ValueError(f"case {case.name!r}: {exc}") from exc
-    names = [c.name for c in cases]
-    if len(set(names)) != len(names):
-        raise ValueError(f"case names must be unique, got {names}")
-    name = data.get("name", default_name)
-    if not isinstance(name, str) or not name:
-        raise ValueError(f"suite key name must be a non-empty string, got {name!r}")
+    _check_unique([c.name for c in cases])
+    name = safe_name(data.get("name", default_name), "suite key name")
     per_follower = data.get("per_follower", [])
     if not isinstance(per_follower, list) or not all(isinstance(g, str) for g in per_follower):
         raise ValueError(f"suite key per_follower must be a list of group names, got "
-                         f"{per_follower!r}")
+                         f"{excerpt(per_follower)}")
     followers = data.get("followers_analysed", 6)
     try:
         seeds = check_seeds(data.get("seeds", 5))
@@ -419,22 +430,30 @@ def suite_from_dict(data: dict[str, Any], default_name: str = "custom") -> Suite
         raise ValueError(f"suite key {exc}") from None
 
 
+def _safe_labels(case: Case) -> Case:
+    """``case`` with its name and labels checked and escaped where they enter (they reach
+    terminals, file names and CSVs)."""
+    return dataclasses.replace(case, **{
+        key: safe_name(getattr(case, key), f"case {excerpt(case.name)}: {key}")
+        for key in ("name", "group", "factor", "level")})
+
+
 def _table(value: Any, key: str, allowed: str) -> dict[str, Any]:
     if not isinstance(value, dict):
-        raise ValueError(f"suite key {key} must be {allowed}, got {value!r}")
+        raise ValueError(f"suite key {key} must be {allowed}, got {excerpt(value)}")
     return dict(value)
 
 
 def _tables(value: Any, key: str) -> list[dict[str, Any]]:
     if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
         raise ValueError(f"suite key {key} must be an array of tables ([[{key}]] sections), "
-                         f"got {value!r}")
+                         f"got {excerpt(value)}")
     return value
 
 
 def _label(value: Any, key: str) -> str:
     if isinstance(value, bool) or not isinstance(value, str | int | float):
-        raise ValueError(f"{key} must be a string (or a number), got {value!r}")
+        raise ValueError(f"{key} must be a string (or a number), got {excerpt(value)}")
     return str(value)
 
 
@@ -453,7 +472,7 @@ def _factor_cases(raw: Any, defaults: dict[str, Any]) -> list[Case]:
         _check_fields({name: None}, f"{where} ({name!r})")
         if not isinstance(levels, list) or not levels:
             raise ValueError(f"{where} ({name!r}): levels must be a non-empty list of values, "
-                             f"got {levels!r}")
+                             f"got {excerpt(levels)}")
         group = _label(factor.get("group", name), f"{where} ({name!r}): group")
         cases += _sweep(group, name, [(str(v), {name: v}) for v in levels], defaults)
     return cases

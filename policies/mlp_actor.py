@@ -14,6 +14,7 @@ trajectories agree with those of the torch model for a while and then drift.
 from __future__ import annotations
 
 import io
+import math
 import zipfile
 from typing import Any
 
@@ -98,6 +99,7 @@ class MLPActor(BatchPolicy):
         """The actor stored by :meth:`to_bytes`; ``ValueError`` for anything else."""
         try:
             with np.load(io.BytesIO(raw), allow_pickle=False) as data:
+                _check_members(data.zip)
                 arrays = {key: data[key] for key in data.files}
             layers = sum(1 for key in arrays if key.startswith("w"))
             weights = [arrays[f"w{k}"] for k in range(layers)]
@@ -107,3 +109,26 @@ class MLPActor(BatchPolicy):
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
             raise ValueError(f"not a stored MLP actor ({ACTOR_ENTRY}): {exc}") from None
         return cls(weights, biases, activation, low, high, env_fields, name)
+
+
+MAX_MEMBERS = 64
+"""Most arrays in a stored actor (3 plus 2 per layer)."""
+
+
+def _check_members(archive: zipfile.ZipFile) -> None:
+    """Refuses, before numpy allocates any of them, an actor whose arrays are too many or
+    declare more data than their entry holds (numpy sizes an array from its header and
+    allocates it before reading; a small entry could declare terabytes)."""
+    infos = archive.infolist()
+    if len(infos) > MAX_MEMBERS:
+        raise ValueError(f"{len(infos)} arrays, more than the {MAX_MEMBERS} allowed")
+    for info in infos:
+        with archive.open(info) as fh:
+            version = np.lib.format.read_magic(fh)
+            header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                      else np.lib.format.read_array_header_2_0)
+            shape, _, dtype = header(fh)
+            nbytes = math.prod(shape) * dtype.itemsize
+        if nbytes > info.file_size:
+            raise ValueError(f"array {info.filename} declares {nbytes:,} bytes but its entry "
+                             f"holds {info.file_size:,}")

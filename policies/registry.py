@@ -13,6 +13,7 @@ from boids_env.config import PRESETS
 from boids_env.policies.base import Policy
 from boids_env.policies.random_policy import RandomPolicy
 from boids_env.policies.reynolds import ReynoldsPolicy
+from boids_env.untrusted import open_zip
 
 BUILTIN = ("reynolds", "random", "learned", "learned-study", "learned-person",
            "learned-scenes")
@@ -143,13 +144,11 @@ def _check_model_zip(path: Path, trust: bool = False) -> None:
     numpy actor is loaded whole (numpy only, milliseconds); a zip without one must at least
     hold SB3's model entries (loading it needs torch, which this check does not import) and,
     untrusted, a network its weights alone can run (nothing in it is unpickled)."""
-    import zipfile
-
     from boids_env.policies.mlp_actor import ACTOR_ENTRY
     from boids_env.policies.sb3_policy import check_untrusted_load, load_model_policy, read_meta
 
     read_meta(path)  # not a zip, or a bad boids.json: refused by name
-    with zipfile.ZipFile(path) as archive:
+    with open_zip(path) as archive:
         names = set(archive.namelist())
     if ACTOR_ENTRY in names:
         load_model_policy(path)

@@ -22,6 +22,7 @@ import numpy.typing as npt
 from boids_env.files import atomic_path, read_zip_entry
 from boids_env.policies.base import BatchPolicy
 from boids_env.policies.mlp_actor import ACTOR_ENTRY, MLPActor
+from boids_env.untrusted import open_zip
 
 META_ENTRY = "boids.json"
 META_LIMIT = 1 << 20
@@ -47,7 +48,7 @@ def read_meta(path: str | Path) -> dict[str, Any]:
     ``ValueError`` naming the file for a file that is not a zip or a metadata entry that is
     not a JSON table."""
     try:
-        with zipfile.ZipFile(path) as zf:
+        with open_zip(path) as zf:
             if META_ENTRY not in zf.namelist():
                 return {}
             raw = read_zip_entry(zf, META_ENTRY, META_LIMIT)  # a zip bomb is refused
@@ -131,9 +132,9 @@ def has_numpy_actor(path: str | Path) -> bool:
     """Whether a model zip carries its actor for numpy (then acting needs no train extra);
     False for a file that is missing or not a zip (its loading reports why)."""
     try:
-        with zipfile.ZipFile(path) as zf:
+        with open_zip(path) as zf:
             return ACTOR_ENTRY in zf.namelist()
-    except (OSError, zipfile.BadZipFile, zipfile.LargeZipFile, EOFError):
+    except (OSError, zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, ValueError):
         return False
 
 
@@ -177,7 +178,7 @@ def _layout(path: Path, blocks: Any) -> Any:
 def _load_model_policy(path: Path, device: str, trust: bool, env_fields: dict[str, Any]
                        ) -> BatchPolicy:
     if device == "cpu":
-        with zipfile.ZipFile(path) as zf:
+        with open_zip(path) as zf:
             try:
                 raw = (read_zip_entry(zf, ACTOR_ENTRY, ACTOR_LIMIT)
                        if ACTOR_ENTRY in zf.namelist() else None)

@@ -34,8 +34,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.files import read_zip_entry
 from boids_env.policies.mlp_actor import MLPActor
+from boids_env.untrusted import open_zip
 
+DATA_LIMIT = 16 << 20
+"""Largest ``data`` entry read (uncompressed bytes; SB3 writes a few kB)."""
+WEIGHTS_LIMIT = 1 << 28
+"""Largest ``policy.pth`` read (uncompressed bytes, 256 MiB)."""
 SERIALIZED = ":serialized:"
 TYPE = ":type:"
 TRUST_FLAG = "--trust-model"
@@ -79,10 +85,10 @@ def read_plain_data(path: str | Path) -> dict[str, Any]:
     :class:`Serialized` (the pickle itself dropped unread); a ``ValueError`` naming the file
     when it is not a zip or ``data`` is not a JSON table."""
     try:
-        with zipfile.ZipFile(path) as zf:
+        with open_zip(path) as zf:
             if "data" not in zf.namelist():
                 raise ValueError(f"SB3 model {path} has no 'data' entry")
-            raw = zf.read("data")
+            raw = read_zip_entry(zf, "data", DATA_LIMIT)
     except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError) as exc:
         raise ValueError(f"cannot read SB3 model {path}: {exc}") from exc
     try:
@@ -206,8 +212,8 @@ def _state_dict(path: str | Path) -> dict[str, npt.NDArray[np.float32]]:
         raise ImportError(f"reading the weights of {Path(path).name} needs torch: pip "
                           f"install 'boids-env[train]' ({exc})") from exc
     try:
-        with zipfile.ZipFile(path) as zf:
-            raw = zf.read(POLICY_ENTRY)
+        with open_zip(path) as zf:
+            raw = read_zip_entry(zf, POLICY_ENTRY, WEIGHTS_LIMIT)
         state = torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
     except KeyError:
         raise ValueError(f"SB3 model {path} has no {POLICY_ENTRY}") from None

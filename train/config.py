@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -15,11 +15,25 @@ from boids_env.config import (
     check_integer,
     check_number,
 )
+from boids_env.untrusted import excerpt, parse_toml, quote_path, read_text
 
 ALGORITHMS = ("ppo", "sac")
 DEVICES = ("cpu", "cuda", "auto")
 RECIPES = Path(__file__).parent / "recipes"
 """The shipped training recipes (``boids train --config ppo_safe``)."""
+MAX_RECIPE_BYTES = 1024 * 1024
+"""A training config file larger than this (1 MiB) is refused before it is read."""
+MAX_ROLLOUT = 1 << 22
+"""Most transitions in one PPO rollout (``n_steps`` × the followers of all copies; about
+1 GB of buffers at the observation sizes here) and largest ``batch_size``. The recipes use
+256 × 72."""
+MAX_BUFFER = 10_000_000
+"""Largest SAC replay buffer (transitions; SB3's default is 1,000,000)."""
+MAX_LAYERS = 16
+"""Most hidden layers in ``net_arch``."""
+MAX_NET_WEIGHTS = 16_000_000
+"""Most weights between the hidden layers of ``net_arch`` (the recipes' 128 × 128 has
+16,384)."""
 
 
 def resolve_recipe(spec: str | Path) -> Path:
@@ -180,6 +194,7 @@ class TrainConfig:
         _set(self, "eval_seeds", tuple(check_integer("eval_seeds", s, 0, 2**32 - 1)
                                        for s in _as_tuple("eval_seeds", self.eval_seeds)))
 
+        _check_sizes(self)
         _check_draws(self)
 
     # ------------------------------------------------------------------------- building
@@ -187,16 +202,14 @@ class TrainConfig:
     def from_toml(cls, path: str | Path, **overrides: Any) -> TrainConfig:
         """Reads a TOML file of fields (top level or a ``[train]`` table); ``overrides``
         (e.g. from command-line flags, None ignored) win."""
-        try:
-            data = tomllib.loads(Path(path).read_text())
-        except FileNotFoundError:
-            raise FileNotFoundError(f"training config not found: {path}") from None
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
-            raise ValueError(f"cannot read training config {path}: {exc}") from exc
+        if not Path(path).exists():
+            raise FileNotFoundError(f"training config not found: {quote_path(path)}")
+        where = f"cannot read training config {quote_path(path)}"
+        data = parse_toml(read_text(path, where, MAX_RECIPE_BYTES), where)
         data = data.get("train", data)
         if not isinstance(data, dict):
-            raise ValueError(f"training config {path}: [train] must be a table of TrainConfig "
-                             f"fields, got {data!r}")
+            raise ValueError(f"training config {quote_path(path)}: [train] must be a table of "
+                             f"TrainConfig fields, got {excerpt(data)}")
         return cls.from_dict({**data, **{k: v for k, v in overrides.items() if v is not None}})
 
     @classmethod
@@ -330,6 +343,36 @@ def _check_draws(config: TrainConfig) -> None:
             raise ValueError(f"worlds entry {k + 1} {world} (copy {i + 1}, robots="
                              f"{fields_['robots']}, over env_fields) gives episodes the env "
                              f"refuses: {exc}") from None
+
+
+def rollout_slots(config: TrainConfig) -> int:
+    """The VecEnv's slots: the followers of every env copy (copies take the group sizes
+    round robin)."""
+    sizes = config.group_sizes
+    return sum(sizes[i % len(sizes)] - 1 for i in range(config.copies))
+
+
+def _check_sizes(config: TrainConfig) -> None:
+    """Refuses sizes that would exhaust memory when training starts (checked here, before
+    anything is allocated): PPO's rollout (``n_steps`` × the followers of all copies),
+    SAC's replay buffer, the minibatch and the network."""
+    slots = rollout_slots(config)
+    if config.algorithm == "ppo" and config.n_steps * slots > MAX_ROLLOUT:
+        raise ValueError(f"n_steps ({config.n_steps:,}) × followers of all copies ({slots:,}) "
+                         f"= {config.n_steps * slots:,} transitions per rollout, more than the "
+                         f"{MAX_ROLLOUT:,} allowed (lower n_steps, copies or group_sizes)")
+    if config.algorithm == "sac" and config.buffer_size > MAX_BUFFER:
+        raise ValueError(f"buffer_size must be at most {MAX_BUFFER:,} transitions, got "
+                         f"{config.buffer_size:,}")
+    if config.batch_size > MAX_ROLLOUT:
+        raise ValueError(f"batch_size must be at most {MAX_ROLLOUT:,}, got "
+                         f"{config.batch_size:,}")
+    arch = config.net_arch
+    weights = sum(a * b for a, b in pairwise(arch))
+    if len(arch) > MAX_LAYERS or weights > MAX_NET_WEIGHTS:
+        raise ValueError(f"net_arch {excerpt(list(arch))} has {len(arch)} layers and "
+                         f"{weights:,} weights between them; at most {MAX_LAYERS} layers and "
+                         f"{MAX_NET_WEIGHTS:,} weights are allowed")
 
 
 def _set(obj: object, name: str, value: Any) -> None:

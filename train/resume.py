@@ -15,12 +15,13 @@ trust). Either way the config's hyperparameters apply, as ``config.json`` says.
 from __future__ import annotations
 
 import io
-import zipfile
 from pathlib import Path
 from typing import Any
 
+from boids_env.files import read_zip_entry
 from boids_env.policies.sb3_zip import UntrustedModelError, read_plain_data
 from boids_env.train.config import TrainConfig
+from boids_env.untrusted import open_zip
 
 COUNTERS = ("num_timesteps", "_n_updates", "_episode_num")
 """Plain integers of ``data`` a resumed run carries on (the step count sets what is left to
@@ -83,8 +84,8 @@ def _weights(path: str | Path, entry: str, device: Any) -> Any:
     import torch
 
     try:
-        with zipfile.ZipFile(path) as zf:
-            raw = zf.read(entry)
+        with open_zip(path, "checkpoint") as zf:
+            raw = read_zip_entry(zf, entry, 1 << 30)
     except KeyError:
         raise ValueError(f"checkpoint {path} has no {entry}") from None
     try:

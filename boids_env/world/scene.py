@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.untrusted import excerpt
 from boids_env.world import geometry as geo
 
 FloatArray = npt.NDArray[np.float64]
@@ -35,6 +36,14 @@ BOX_WALLS = ("east", "north", "west", "south")
 """The box's walls in the order its queries use (+x, +y, −x, −y)."""
 INDEX_CELL = 0.5
 """Cell size (m) of the spatial index that narrows a query to the shapes near a point."""
+MAX_SPAN = 500.0
+"""Largest extent (m, along x or y) of a scene read from a file (a map or a shapes file):
+every grid over a scene (its spatial index, its occupancy raster) grows with its area. A
+4096² map of 10 cm cells (410 m) fits."""
+MAX_RASTER = 4096
+"""Most cells along a side of a scene's occupancy raster (``/map``, bags)."""
+MAX_SHAPES = 50_000
+"""Most capsules and polygon edges in one scene (a map's contours included)."""
 SECTOR_COS = math.cos(math.radians(45.0))
 """Static slots after the first hold points whose direction differs by more than 45° from
 every earlier slot's (so a corridor shows both walls and a corner both sides)."""
@@ -123,6 +132,20 @@ class Scene:
         self._set("_qr", np.concatenate([r, np.zeros(sum(len(p) for p in polys))]))
         owner = [np.arange(len(r))] + [np.full(len(p), len(r) + k) for k, p in enumerate(polys)]
         self._set("_owner", np.concatenate(owner).astype(np.intp))
+        self._check_budget()
+
+    def _check_budget(self) -> None:
+        """Refuses a scene with shapes (or a map) too large to index: more than
+        :data:`MAX_SHAPES` shapes or an extent beyond :data:`MAX_SPAN` (an empty box, the
+        study's arena of any size, builds no index)."""
+        if len(self._qr) > MAX_SHAPES:
+            raise ValueError(f"scene {excerpt(self.name)}: {len(self._qr):,} shapes (capsules "
+                             f"and polygon edges), more than the {MAX_SHAPES:,} allowed")
+        if (len(self._qr) or self.grid is not None) and self.span > MAX_SPAN:
+            x0, y0, x1, y1 = self.bounds
+            raise ValueError(f"scene {excerpt(self.name)}: it spans {x1 - x0:g} m × "
+                             f"{y1 - y0:g} m; a scene with shapes may span at most "
+                             f"{MAX_SPAN:g} m")
 
     def _set(self, name: str, value: Any) -> None:
         object.__setattr__(self, name, value)
@@ -392,12 +415,15 @@ class Scene:
     def occupancy(self, resolution: float = 0.05) -> OccupancyGrid:
         """The scene as a ROS occupancy grid: a map's own cells, else the scene rasterised
         at ``resolution`` (m per cell) over its bounds plus one cell of wall around (a cell is
-        occupied when its centre lies within half a cell of static geometry)."""
+        occupied when its centre lies within half a cell of static geometry). A scene wider
+        than :data:`MAX_RASTER` cells is rasterised with coarser cells."""
         if self.grid is not None:
             return self.grid
+        x0, y0, x1, y1 = self.bounds
+        # a budget of cells: a huge arena (arena_half_size up to 1000 m) gets coarser cells
+        resolution = max(float(resolution), max(x1 - x0, y1 - y0) / MAX_RASTER)
         key = ("occupancy", float(resolution))
         if key not in self._cache:
-            x0, y0, x1, y1 = self.bounds
             ox, oy = x0 - resolution, y0 - resolution
             w = max(1, math.ceil((x1 - x0) / resolution)) + 2
             h = max(1, math.ceil((y1 - y0) / resolution)) + 2
@@ -455,12 +481,21 @@ def _build_index(scene: Scene, reach: float
     gx, gy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
     centres = origin + (np.stack([gx.ravel(), gy.ravel()], axis=1) + 0.5) * INDEX_CELL
     qa, qb, qr = scene._qa, scene._qb, scene._qr
+    lo = np.minimum(qa, qb) - qr[:, None]  # each capsule's bounding box
+    hi = np.maximum(qa, qb) + qr[:, None]
+    slack = reach + INDEX_CELL * math.sqrt(0.5)
     lists = []
     for start in range(0, len(centres), 512):
         c = centres[start:start + 512]
-        _, d = geo.closest_on_segments(c[:, None, :], qa[None], qb[None])
-        near = d - qr[None] <= reach + INDEX_CELL * math.sqrt(0.5)
-        lists += [np.flatnonzero(row) for row in near]
+        # only capsules whose box comes near this chunk's cells can be near any of them (the
+        # same lists as testing all, in bounded time and memory)
+        near_box = np.all((lo <= c.max(axis=0) + slack) & (hi >= c.min(axis=0) - slack), axis=1)
+        pick = np.flatnonzero(near_box)
+        for part in range(0, len(c), max(1, 1_000_000 // max(len(pick), 1))):
+            cc = c[part:part + max(1, 1_000_000 // max(len(pick), 1))]
+            _, d = geo.closest_on_segments(cc[:, None, :], qa[None, pick], qb[None, pick])
+            near = d - qr[None, pick] <= slack
+            lists += [pick[np.flatnonzero(row)] for row in near]
     width = max(1, max(len(x) for x in lists))
     table = np.full((len(lists), width), len(qr), dtype=np.intp)  # the dummy capsule
     for i, x in enumerate(lists):

@@ -151,7 +151,7 @@ def load_scene(spec: str, arena_half_size: float = 5.0) -> Scene:
         stat = path.stat()
     except OSError as exc:
         raise ValueError(f"scene file {spec} cannot be read: {exc.strerror or exc}") from None
-    return _from_file(str(path.resolve()), stat.st_size, stat.st_mtime_ns)
+    return _from_file(str(path.resolve()), stat.st_size, stat.st_mtime_ns, path.suffix.lower())
 
 
 @functools.lru_cache(maxsize=16)
@@ -160,8 +160,8 @@ def _builtin(name: str, half_size: float) -> Scene:
 
 
 @functools.lru_cache(maxsize=16)
-def _from_file(path: str, size: int, mtime: int) -> Scene:
-    if path.lower().endswith((".yaml", ".yml")):
+def _from_file(path: str, size: int, mtime: int, suffix: str) -> Scene:
+    if suffix in (".yaml", ".yml"):  # the name given decides (a symlink's target may differ)
         from boids_env.world.maps import load_map
 
         return load_map(path)

@@ -29,16 +29,23 @@ and unknown keys are refused; nothing in the file is executed.
 
 from __future__ import annotations
 
-import json
 import math
-import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from boids_env.untrusted import (
+    excerpt,
+    parse_json,
+    parse_toml,
+    printable,
+    quote_path,
+    read_text,
+    safe_name,
+)
 from boids_env.world import geometry as geo
-from boids_env.world.scene import SCENE_FIELDS, STUDY_DEFAULTS, Scene
+from boids_env.world.scene import MAX_SPAN, SCENE_FIELDS, STUDY_DEFAULTS, Scene
 
 MAX_BYTES = 1024 * 1024
 """A shapes file larger than this is refused."""
@@ -52,20 +59,12 @@ TOP_KEYS = {"name", "description", "box", "circle", "segment", "polygon", "defau
 def load_shapes(path: str | Path) -> Scene:
     """The scene of a shapes file (TOML or JSON); ``ValueError`` naming the file and entry."""
     path = Path(path)
-    try:
-        size = path.stat().st_size
-        if size > MAX_BYTES:
-            raise ValueError(f"scene {path}: larger than {MAX_BYTES // 1024} KiB")
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"scene {path}: cannot read it ({exc})") from None
-    try:
-        data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
-    except (ValueError, tomllib.TOMLDecodeError) as exc:
-        raise ValueError(f"scene {path}: not valid {path.suffix[1:].upper()} ({exc})") from None
+    where = f"scene {quote_path(path)}"
+    text = read_text(path, "scene", MAX_BYTES)
+    data = parse_json(text, where) if path.suffix.lower() == ".json" else parse_toml(text, where)
     if not isinstance(data, dict):
-        raise ValueError(f"scene {path}: the file must hold a table of shapes")
-    return shapes_scene(data, str(path))
+        raise ValueError(f"{where}: the file must hold a table of shapes")
+    return shapes_scene(data, quote_path(path))
 
 
 def shapes_scene(data: dict[str, Any], name: str) -> Scene:
@@ -79,6 +78,9 @@ def shapes_scene(data: dict[str, Any], name: str) -> Scene:
         if not (box[0] < box[2] and box[1] < box[3]):
             raise ValueError(f"scene {name}: box must be [xmin, ymin, xmax, ymax] with min < "
                              f"max, got {list(box)}")
+        if max(box[2] - box[0], box[3] - box[1]) > MAX_SPAN:
+            raise ValueError(f"scene {name}: box spans {box[2] - box[0]:g} m × "
+                             f"{box[3] - box[1]:g} m; a scene may span at most {MAX_SPAN:g} m")
     a, b, r, names = [], [], [], []
     for k, entry in enumerate(_entries(name, data, "circle", {"center", "radius"})):
         c = _numbers(name, f"circle {k} center", entry.get("center"), 2)
@@ -102,14 +104,16 @@ def shapes_scene(data: dict[str, Any], name: str) -> Scene:
     given = data.get("defaults", {})
     if not isinstance(given, dict) or set(given) - set(SCENE_FIELDS):
         raise ValueError(f"scene {name}: defaults must be a table of scenario fields among "
-                         f"{list(SCENE_FIELDS)}, got {given!r}")
+                         f"{list(SCENE_FIELDS)}, got {excerpt(given)}")
     defaults.update({k: tuple(map(tuple, v)) if k == "waypoints" and isinstance(v, list)
                      else tuple(v) if k == "start" and isinstance(v, list) else v
                      for k, v in given.items()})
     description = data.get("description", f"shapes file {Path(name).name}")
-    scene_name = data.get("name", name)
-    if not isinstance(description, str) or not isinstance(scene_name, str):
-        raise ValueError(f"scene {name}: name and description must be strings")
+    if not isinstance(description, str):
+        raise ValueError(f"scene {name}: description must be a string, got "
+                         f"{excerpt(description)}")
+    description = printable(description, 400)
+    scene_name = safe_name(data.get("name", name), f"scene {name}: name", limit=300)
     return Scene(scene_name, description, box=box,  # type: ignore[arg-type]
                  a=np.array(a).reshape(-1, 2), b=np.array(b).reshape(-1, 2), radius=np.array(r),
                  polygons=tuple(polygons), names=tuple(names), defaults=defaults)
@@ -123,7 +127,7 @@ def _entries(name: str, data: dict[str, Any], key: str, allowed: set[str]
     for k, entry in enumerate(entries):
         if not isinstance(entry, dict) or set(entry) - allowed:
             raise ValueError(f"scene {name}: {key} {k} must be a table with keys "
-                             f"{sorted(allowed)}, got {entry!r}")
+                             f"{sorted(allowed)}, got {excerpt(entry)}")
     return entries
 
 
@@ -133,7 +137,7 @@ def _numbers(name: str, what: str, value: Any, count: int) -> list[float]:
         and abs(v) <= LIMIT for v in value)
     if not ok:
         raise ValueError(f"scene {name}: {what} must be {count} finite numbers within "
-                         f"±{LIMIT:g} m, got {value!r}")
+                         f"±{LIMIT:g} m, got {excerpt(value)}")
     return [float(v) for v in value]
 
 
@@ -142,7 +146,8 @@ def _radius(name: str, what: str, value: Any, positive: bool = False) -> float:
           and (value > 0 if positive else value >= 0) and value <= LIMIT)
     if not ok:
         bound = "(0" if positive else "[0"
-        raise ValueError(f"scene {name}: {what} must be in {bound}, {LIMIT:g}] m, got {value!r}")
+        raise ValueError(f"scene {name}: {what} must be in {bound}, {LIMIT:g}] m, got "
+                         f"{excerpt(value)}")
     return float(value)
 
 
@@ -150,7 +155,7 @@ def _convex(name: str, k: int, points: Any) -> np.ndarray:
     """A polygon's corners, counter-clockwise; ``ValueError`` unless convex with ≥ 3."""
     if not isinstance(points, list) or not 3 <= len(points) <= MAX_SHAPES:
         raise ValueError(f"scene {name}: polygon {k} points must be a list of 3 to {MAX_SHAPES} "
-                         f"[x, y] corners, got {points!r}")
+                         f"[x, y] corners, got {excerpt(points)}")
     p = np.array([_numbers(name, f"polygon {k} corner {i}", q, 2) for i, q in enumerate(points)])
     turns = geo.cross(np.roll(p, -1, axis=0) - p, np.roll(p, -2, axis=0) - np.roll(p, -1, axis=0))
     if not (np.all(turns > 0) or np.all(turns < 0)):

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.untrusted import quote_path, read_text
+
 FloatArray = npt.NDArray[np.float64]
 
 WALKS = {"doorway_walk": Path(__file__).parent / "data" / "doorway_walk.csv"}
@@ -48,22 +50,17 @@ def read_walk(path: str | Path) -> tuple[FloatArray, FloatArray]:
     try:
         stat = p.stat()
     except OSError as exc:
-        raise ValueError(f"leader_trajectory {path}: cannot be read: "
+        raise ValueError(f"leader_trajectory {quote_path(path)}: cannot be read: "
                          f"{exc.strerror or exc}") from None
     if not p.is_file():
-        raise ValueError(f"leader_trajectory {path}: not a file")
+        raise ValueError(f"leader_trajectory {quote_path(path)}: not a regular file")
     return _read_walk(str(p.resolve()), stat.st_size, stat.st_mtime_ns)
 
 
 @functools.lru_cache(maxsize=16)
 def _read_walk(path: str, size: int, mtime: int) -> tuple[FloatArray, FloatArray]:
-    if size > WALK_MAX_BYTES:
-        raise ValueError(f"leader_trajectory {path}: {size} bytes, more than the "
-                         f"{WALK_MAX_BYTES} allowed")
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"leader_trajectory {path}: not a UTF-8 text file ({exc})") from None
+    text = read_text(path, "leader_trajectory", WALK_MAX_BYTES)
+    path = quote_path(path)
     rows: list[tuple[float, float, float]] = []
     for number, line in enumerate(text.splitlines(), start=1):
         cells = [c.strip() for c in line.split(",")]
@@ -71,10 +68,11 @@ def _read_walk(path: str, size: int, mtime: int) -> tuple[FloatArray, FloatArray
             continue
         if not rows and number == _first_line(text) and not _numeric(cells[0]):
             if [c.lower() for c in cells] != ["t", "x", "y"]:
+                # the file's content is never quoted: the path may name any file
                 raise ValueError(f"leader_trajectory {path}: row {number}: the header must be "
-                                 f"'t,x,y', got {line.strip()[:80]!r}")
+                                 f"'t,x,y' (a CSV of t, x, y in s and m)")
             continue
-        rows.append(_row(path, number, cells, line, rows[-1][0] if rows else None))
+        rows.append(_row(path, number, cells, rows[-1][0] if rows else None))
         if len(rows) > WALK_MAX_ROWS:
             raise ValueError(f"leader_trajectory {path}: more than {WALK_MAX_ROWS} rows")
     if len(rows) < 2:
@@ -102,20 +100,21 @@ def _numeric(cell: str) -> bool:
     return True
 
 
-def _row(path: str, number: int, cells: list[str], line: str,
+def _row(path: str, number: int, cells: list[str],
          previous: float | None) -> tuple[float, float, float]:
     """One checked sample ``(t, x, y)`` of row ``number``."""
     if len(cells) != 3:
         raise ValueError(f"leader_trajectory {path}: row {number}: expected 3 values t,x,y, "
-                         f"got {len(cells)} ({line.strip()[:80]!r})")
+                         f"got {len(cells)}")
     try:
         t, x, y = (float(c) for c in cells)
     except ValueError:
-        raise ValueError(f"leader_trajectory {path}: row {number}: t,x,y must be numbers, got "
-                         f"{line.strip()[:80]!r}") from None
+        bad = next(n for n, c in zip("txy", cells, strict=True) if not _numeric(c))
+        raise ValueError(f"leader_trajectory {path}: row {number}: t,x,y must be numbers, "
+                         f"{bad} is not") from None
     if not all(math.isfinite(v) and abs(v) <= WALK_MAX_COORDINATE for v in (t, x, y)):
         raise ValueError(f"leader_trajectory {path}: row {number}: values must be finite and "
-                         f"within ±{WALK_MAX_COORDINATE:g}, got {line.strip()[:80]!r}")
+                         f"within ±{WALK_MAX_COORDINATE:g}, got {t:g}, {x:g}, {y:g}")
     if t < 0:
         raise ValueError(f"leader_trajectory {path}: row {number}: t must be >= 0 s (the "
                          f"episode's clock), got {t:g}")

@@ -42,6 +42,7 @@ from boids_env.eval.ros.protocol import (
     Tick,
     TickAssembler,
     cmd_topic,
+    finite_commands,
     is_continuation,
     odom_topic,
 )
@@ -175,6 +176,8 @@ class ControllerNode:
         self.episode: EpisodeInfo | None = None
         self._episode_start: int | None = None
         self.answered = 0
+        self.nonfinite = 0
+        """Commands sent as a stop because they were not finite (non-finite odometry)."""
         self.odom_subs = [rospy.Subscriber(odom_topic(k), Odometry, self._on_odom,
                                            callback_args=k, queue_size=QUEUE_SIZE,
                                            tcp_nodelay=True) for k in range(self.robots)]
@@ -315,6 +318,11 @@ class ControllerNode:
             commands = self.model.native(world, headings[1:])
         if self._holding(tick.stamp_ns):
             commands = np.zeros_like(commands)
+        commands, bad = finite_commands(commands)
+        if bad:
+            self.nonfinite += bad
+            self.rospy.logwarn_throttle(5.0, f"{self.name}: {bad} non-finite command(s) (from "
+                                        f"non-finite odometry?) sent as a stop")
         self._await_listener()
         for pub, (a, b) in zip(self.cmd_pubs, commands.tolist(), strict=True):
             pub.publish(self.msgs.twist(a, b) if headings is None

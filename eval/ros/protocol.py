@@ -152,8 +152,7 @@ class CommandBoard:
         """Records follower ``index``'s command received at ``now`` (s, monotonic); returns
         False (and counts it in :attr:`rejected`) for a non-finite one, which is dropped."""
         if not (math.isfinite(vx) and math.isfinite(vy)):
-            with self._cond:
-                self.rejected += 1
+            self.reject()
             return False
         with self._cond:
             if self._generation[index] == self._current:
@@ -163,6 +162,11 @@ class CommandBoard:
             self._arrival[index] = now
             self._cond.notify_all()
         return True
+
+    def reject(self) -> None:
+        """Counts a non-finite command dropped (a follower's, or the external leader's)."""
+        with self._cond:
+            self.rejected += 1
 
     def open_tick(self, new_episode: bool = False) -> None:
         """Starts a new generation: call it *before* publishing a tick, so every answer to it
@@ -293,3 +297,24 @@ def config_json(config_dict: dict[str, Any]) -> str:
     """An env config dict as the JSON string of :data:`CONFIG_PARAM` (XML-RPC, the parameter
     server's transport, has no ``None``)."""
     return json.dumps(config_dict)
+
+
+def finite_leader_command(vx: float, vy: float, previous: npt.NDArray[np.float64]
+                          ) -> tuple[npt.NDArray[np.float64], bool]:
+    """The external leader's command from a Twist on ``/robot_0/cmd_vel``: ``(vx, vy)``, or
+    ``previous`` unchanged (and False) when either is not finite. A NaN from a joystick
+    driver is dropped as a follower's is (:meth:`CommandBoard.post`), never stepped."""
+    if not (math.isfinite(vx) and math.isfinite(vy)):
+        return previous, False
+    return np.array([vx, vy], dtype=np.float64), True
+
+
+def finite_commands(commands: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], int]:
+    """``commands`` (F, 2) with every row that holds a non-finite value set to zero (that
+    robot stops), and how many rows were: a NaN odometry poisons the observations of every
+    follower near it, and a NaN command must never go out on ``cmd_vel``."""
+    bad = ~np.isfinite(commands).all(axis=1)
+    if not bad.any():
+        return commands, 0
+    out = np.where(bad[:, None], 0.0, commands)
+    return out, int(bad.sum())

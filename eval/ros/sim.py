@@ -39,6 +39,7 @@ from boids_env.eval.ros.protocol import (
     EpisodeInfo,
     cmd_topic,
     config_json,
+    finite_leader_command,
     odom_topic,
     period_ns,
     stamp_ns,
@@ -200,7 +201,12 @@ class SimNode:
                                         f"{self.agents[index]}")
 
     def _on_leader(self, msg: Any) -> None:
-        self._leader_command = np.array([msg.linear.x, msg.linear.y])
+        self._leader_command, ok = finite_leader_command(msg.linear.x, msg.linear.y,
+                                                         self._leader_command)
+        if not ok:
+            self.board.reject()
+            self.rospy.logwarn_throttle(5.0, f"{self.name}: dropped a non-finite command for "
+                                        f"the leader")
 
     # -------------------------------------------------------------------------- waiting
     def _controllers(self) -> list[str]:

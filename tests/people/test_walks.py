@@ -1,5 +1,7 @@
 """Recorded walks: leader="trajectory" replays a CSV of t, x, y on the episode's clock."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -97,3 +99,23 @@ def test_a_walk_inside_the_arena_from_the_origin_is_accepted(tmp_path):
     path = write(tmp_path, "t,x,y\n0,0,0\n10,3,0\n")
     config = EnvConfig.from_kwargs(leader="trajectory", leader_trajectory=path)
     assert config.scenario.start == (0.0, 0.0)
+
+
+def test_a_file_that_is_not_a_walk_is_never_quoted(tmp_path):
+    """Issue 39: ``leader_trajectory=/etc/passwd`` printed the file's first 80 characters."""
+    secret = tmp_path / "secret.txt"
+    secret.write_text("root:SECRET-TOKEN:0:0\nmore,SECRET2,x\n")
+    with pytest.raises(ValueError, match="the header must be 't,x,y'") as info:
+        read_walk(secret)
+    assert "SECRET" not in str(info.value)
+    secret.write_text("t,x,y\n0,0,0\n1,SECRET3,0\n2,0,0,SECRET4\n")
+    with pytest.raises(ValueError, match="row 3: t,x,y must be numbers, x is not") as info:
+        read_walk(secret)
+    assert "SECRET" not in str(info.value)
+
+
+def test_a_fifo_walk_is_refused_without_blocking(tmp_path):
+    fifo = tmp_path / "w.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="not a regular file"):
+        read_walk(fifo)

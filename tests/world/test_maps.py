@@ -134,7 +134,7 @@ def test_an_absolute_image_outside_the_folder_says_why_and_how_to_fix_it(tmp_pat
     inner.mkdir()
     _map(tmp_path, [[0]])
     with pytest.raises(ValueError, match=r"outside the map's folder .*move the image beside "
-                       r"the YAML and make image: relative, e\.g\. image: m\.pgm"):
+                       r"the YAML and make image: relative, e\.g\. image: 'm\.pgm'"):
         maps.load_map(_map(inner, [[0]], image=str(tmp_path / "m.pgm")))
     os.symlink(tmp_path / "m.pgm", inner / "link.pgm")  # absolute, inside, but a link out
     with pytest.raises(ValueError, match="outside the map's folder"):

@@ -1,0 +1,71 @@
+"""Issue 39: a model zip is opened only as a regular file within a byte budget, and each
+entry it holds (``data``, ``policy.pth``, the arrays of a stored actor) is bounded before it
+is inflated or allocated."""
+
+import io
+import os
+import zipfile
+
+import numpy as np
+import pytest
+
+from boids_env.policies import sb3_zip
+from boids_env.policies.mlp_actor import MLPActor
+from boids_env.policies.registry import check_policy_spec
+from boids_env.policies.sb3_policy import has_numpy_actor, read_meta
+
+
+def test_a_model_zip_that_is_a_device_is_refused_without_reading(tmp_path):
+    zero = tmp_path / "model.zip"
+    zero.symlink_to("/dev/zero")
+    assert has_numpy_actor(zero) is False
+    with pytest.raises(ValueError, match=r"not a regular file \(a character device\)"):
+        read_meta(zero)
+    with pytest.raises((ValueError, FileNotFoundError)):
+        check_policy_spec(str(zero))
+
+
+def test_a_fifo_model_zip_does_not_block(tmp_path):
+    fifo = tmp_path / "model.zip"
+    os.mkfifo(fifo)
+    assert has_numpy_actor(fifo) is False
+    with pytest.raises(ValueError, match=r"not a regular file \(a FIFO"):
+        read_meta(fifo)
+
+
+def _zip(path, entries):
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in entries.items():
+            zf.writestr(name, data)
+    return path
+
+
+def test_a_data_entry_that_inflates_past_its_budget_is_refused(tmp_path):
+    path = _zip(tmp_path / "m.zip", {"data": b" " * (17 << 20), "policy.pth": b""})
+    assert path.stat().st_size < 100_000
+    with pytest.raises(ValueError, match=r"its entry data holds 17,825,792 bytes uncompressed"):
+        sb3_zip.read_plain_data(path)
+
+
+def test_policy_pth_is_bounded_before_torch_sees_it(tmp_path, monkeypatch):
+    pytest.importorskip("torch")
+    monkeypatch.setattr(sb3_zip, "WEIGHTS_LIMIT", 1000)
+    path = _zip(tmp_path / "m.zip", {"policy.pth": b"\0" * 5000})
+    with pytest.raises(ValueError, match=r"its entry policy.pth holds 5,000 bytes"):
+        sb3_zip._state_dict(path)
+
+
+def _npy_claiming(shape):
+    """An .npy whose header declares ``shape`` float64 but which holds 8 bytes of data."""
+    buffer = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        buffer, {"descr": "<f8", "fortran_order": False, "shape": shape})
+    return buffer.getvalue() + b"\0" * 8
+
+
+def test_an_actor_array_whose_header_lies_is_refused_before_allocating():
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as zf:
+        zf.writestr("w0.npy", _npy_claiming((10**6, 10**6)))
+    with pytest.raises(ValueError, match=r"array w0.npy declares 8,000,000,000,000 bytes"):
+        MLPActor.from_bytes(buffer.getvalue())
