@@ -35,6 +35,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     _eval_parser(sub)
     _report_parser(sub)
     _ros_parser(sub)
+    from boids_env.eval.ros2.cli import add_ros2_parser
+
+    add_ros2_parser(sub)
     _scenes_parser(sub)
     _select_parser(sub)
 
