@@ -160,6 +160,21 @@ class Messages:
         return self.t["geometry_msgs/msg/TwistStamped"](header=header,
                                                         twist=self.twist(vx, vy, turn_rate))
 
+    def laser_scan(self, header: Any, ranges: FloatArray, range_max: float,
+                   scan_time: float = 0.0) -> Any:
+        """sensor_msgs/LaserScan of ``ranges`` (m), rays evenly spaced counter-clockwise
+        from the frame's x axis over a full turn; a ray that hits nothing within
+        ``range_max`` reads +inf (REP 117)."""
+        rays = len(ranges)
+        step = 2 * math.pi / rays if rays else 0.0
+        values = np.asarray(ranges, dtype=np.float32)
+        values = np.where(values >= np.float32(range_max), np.float32(np.inf), values)
+        return self.t["sensor_msgs/msg/LaserScan"](
+            header=header, angle_min=0.0, angle_max=float(step * (rays - 1)),
+            angle_increment=float(step), time_increment=0.0, scan_time=float(scan_time),
+            range_min=0.0, range_max=float(range_max), ranges=values.astype(np.float32),
+            intensities=np.zeros(0, dtype=np.float32))
+
     def string(self, text: str) -> Any:
         return self.t["std_msgs/msg/String"](data=text)
 

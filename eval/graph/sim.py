@@ -34,6 +34,7 @@ from boids_env.eval.ros.protocol import (
 )
 from boids_env.eval.run import metrics_table
 from boids_env.files import atomic_path, write_json
+from boids_env.observations import Observer, lidar_scans
 from boids_env.recording import Recorder, Recording
 from boids_env.world.robots import quaternion_headings, to_body
 
@@ -124,6 +125,10 @@ class SimFrame:
     leader_command: tuple[float, float, float] | None
     """The scripted leader's next command as its ``cmd_vel`` carries it (linear.x, linear.y,
     angular.z), or None (an external leader is commanded from outside)."""
+    scans: FloatArray | None = None
+    """(F, R) each follower's lidar ranges (m) in its own frame when the config has a lidar
+    (``lidar_rays``), else None."""
+    lidar_range: float = 0.0
 
 
 class SimTransport(Protocol):
@@ -191,6 +196,8 @@ class SimCore:
         """An external leader's latest command (world frame)."""
         self.next_start_ns = period_ns(CLOCK_START)
         """The stamp of the next episode's tick 0."""
+        obs = config.observation
+        self._sensors = Observer(config).sensors if obs.lidar_rays > 0 else None
         self.ready = False
 
     # ------------------------------------------------------------------------- commands
@@ -224,8 +231,14 @@ class SimCore:
                 h = quaternion_headings(quaternions[:1, 0], quaternions[:1, 1])
                 v, w = self.env.robot_model.native(np.array([[vx, vy]]), h)[0]
                 leader = (float(v), 0.0, float(w))
+        scans = None
+        if self._sensors is not None:
+            headings = None if quaternions is None else quaternion_headings(
+                quaternions[:, 0], quaternions[:, 1])
+            scans = lidar_scans(snap.positions, self.config.observation.lidar_rays,
+                                self._sensors, headings)
         return SimFrame(tick, stamp_ns(start, tick, self.dt), snap.positions, velocities,
-                        quaternions, turn, leader)
+                        quaternions, turn, leader, scans, self.config.observation.lidar_range)
 
     def _lockstep_commands(self, tick: int, transport: SimTransport) -> np.ndarray | None:
         """Waits for every follower's answer to ``tick``; None if the node shut down."""

@@ -5,7 +5,9 @@ Publishes, for every robot k, ``/robot_k/odom`` (nav_msgs/Odometry, frame ``robo
 child ``robot_k/base_footprint``), ``/tf`` (``robot_k/odom`` → ``robot_k/base_footprint``)
 and ``/tf_static`` (``map`` → ``robot_k/odom``, latched): REP 105's tree, as a TurtleBot3's
 odometry gives it; ``/clock``; the scene as ``/map`` (nav_msgs/OccupancyGrid, latched) and
-``/markers/obstacles``; the robots as ``/markers/robots``; the scripted leader's
+``/markers/obstacles``; the robots as ``/markers/robots``; with a lidar
+(``--set lidar_rays=N``) every follower's ``/robot_k/scan`` (sensor_msgs/LaserScan in its
+``base_footprint`` frame); the scripted leader's
 ``/robot_0/cmd_vel``; the config and each episode on ``/boids/env_config`` and
 ``/boids/episode`` (latched std_msgs/String, where ROS 1 used the parameter server).
 Subscribes to every follower's ``/robot_k/cmd_vel`` (Twist, or TwistStamped).
@@ -50,6 +52,12 @@ CLOCK = "rosgraph_msgs/msg/Clock"
 GRID = "nav_msgs/msg/OccupancyGrid"
 MARKERS = "visualization_msgs/msg/MarkerArray"
 STRING = "std_msgs/msg/String"
+SCAN = "sensor_msgs/msg/LaserScan"
+
+
+def scan_topic(robot: int) -> str:
+    """``/robot_k/scan``: a follower's simulated lidar (with ``lidar_rays``)."""
+    return f"/robot_{robot}/scan"
 
 
 @contextmanager
@@ -103,6 +111,8 @@ class Ros2Sim:
         self.tf_pub = node.publisher("/tf", TF)
         self.robot_markers = node.publisher("/markers/robots", MARKERS)
         self.odom_pubs = [node.publisher(odom_topic(k), ODOM) for k in range(robots)]
+        self.scan_pubs = [node.publisher(scan_topic(k), SCAN) for k in range(1, robots)] \
+            if core.config.observation.lidar_rays > 0 else []
         self._parents = [odom_frame(k) for k in range(robots)]
         self._children = [base_frame(k) for k in range(robots)]
         cmd_type = ros2.cmd_type
@@ -202,6 +212,10 @@ class Ros2Sim:
             self.leader_pub.publish(twist if self.ros2.cmd_type == TWIST else
                                     m.twist_stamped(m.header(ns, 0, base_frame(0)),
                                                     *frame.leader_command))
+        if frame.scans is not None:
+            for k, (pub, ranges) in enumerate(zip(self.scan_pubs, frame.scans, strict=True)):
+                pub.publish(m.laser_scan(m.header(ns, 0, base_frame(k + 1)), ranges,
+                                         frame.lidar_range))
         yaws = self._yaws(frame)
         self.robot_markers.publish(m.robot_markers(ns, 0, frame.positions, yaws))
 

@@ -64,12 +64,11 @@ def test_two_ros2_processes_reproduce_boids_run_exactly_on_the_default_case(ros2
     _check_wire(wire, "jazzy", ours)
 
 
-def _check_wire(wire, distribution: str, recording: Recording) -> None:
+def _check_samples(wire, distribution: str) -> dict[str, list[bytes]]:
     """Every sample on the wire: key expression and type hash by rmw_zenoh's rule with
-    rosbags' hash, payload CDR that rosbags reads back to the same bytes, rmw_zenoh's
-    attachment with each publisher's sequence numbers 1, 2, 3 …; every token parses; the
-    odometry decoded by mcap-ros2-support equals the recording."""
-    from mcap_ros2._dynamic import generate_dynamic
+    rosbags' hash of ``distribution``, payload CDR that rosbags reads back to the same bytes,
+    rmw_zenoh's attachment with each publisher's sequence numbers consecutive; every token
+    parses by rmw_zenoh's grammar. Returns the payloads by topic."""
     from rosbags.typesys import Stores, get_typestore
 
     from boids_env.eval.ros2.wire import parse_attachment, parse_token, ros_type
@@ -95,6 +94,22 @@ def _check_wire(wire, distribution: str, recording: Recording) -> None:
         # each publisher counts its samples; odometry and commands start after the spy did
         first = 1 if "/odom/" in key or "/cmd_vel/" in key else seen[0]
         assert seen == list(range(first, first + len(seen))), (key, seen[:5])
+    for token in wire.tokens:
+        parse_token(token)
+    return by_topic
+
+
+def _check_wire(wire, distribution: str, recording: Recording) -> None:
+    """:func:`_check_samples`, every topic of the graph present, the odometry decoded by an
+    independent CDR reader (mcap-ros2-support's) equal to the recording, the nodes'
+    tokens."""
+    from mcap_ros2._dynamic import generate_dynamic
+    from rosbags.typesys import Stores, get_typestore
+
+    from boids_env.eval.ros2.wire import parse_token
+
+    store = get_typestore(getattr(Stores, f"ROS2_{distribution.upper()}"))
+    by_topic = _check_samples(wire, distribution)
     expected = {"/clock", "/tf", "/tf_static", "/map", "/markers/robots",
                 "/markers/obstacles", "/boids/env_config", "/boids/episode",
                 "/robot_0/odom", "/robot_1/cmd_vel", "/reynolds_controller/markers"}
@@ -118,15 +133,16 @@ def _check_wire(wire, distribution: str, recording: Recording) -> None:
 
 
 def test_a_turtlebot3_on_a_map_with_twist_stamped_equals_boids_run_exactly(ros2):
-    """A TurtleBot3 on the lab map, cmd_vel as Jazzy's TurtleBot3 takes it (TwistStamped,
-    body frame), Kilted's type hashes: the lockstep run equals boids run bit for bit."""
+    """A TurtleBot3 with a lidar on the lab map, cmd_vel as Jazzy's TurtleBot3 takes it
+    (TwistStamped, body frame), Kilted's type hashes: the lockstep run equals boids run bit
+    for bit, and every follower's LaserScan is on the wire."""
     fields = ["--robot", "turtlebot3_burger", "--scene", "lab", "--robots", "5",
-              "--max-cycles", "120"]
+              "--max-cycles", "120", "--set", "lidar_rays=16"]
     net = ("--twist-stamped", "--distribution", "kilted")
     out, _sim, _controller, wire = _run_lockstep(ros2, *fields, *net, controller_args=net,
                                                spy=True)
     reference = run("reynolds", out=None, seed=0, quiet=True, env_fields=dict(
-        robot="turtlebot3_burger", scene="lab", robots=5, max_cycles=120))
+        robot="turtlebot3_burger", scene="lab", robots=5, max_cycles=120, lidar_rays=16))
     ours = Recording.from_parquet(out / "trajectory.parquet")
     _assert_same_recording(ours, reference.recording, "turtlebot graph vs boids run")
     for name in ("headings", "angular_velocities", "native"):
@@ -148,3 +164,25 @@ def test_a_turtlebot3_on_a_map_with_twist_stamped_equals_boids_run_exactly(ros2)
     v = np.array([[c.twist.linear.x, c.twist.angular.z] for c in cmds[:-1]])
     # the answer to tick k is what robot 2 executes from sample k to k + 1
     assert np.array_equal(v, ours.native[1:, 2]), "cmd_vel on the wire != executed command"
+    scans = [store.deserialize_cdr(p, "sensor_msgs/msg/LaserScan")
+             for k, p, _ in wire.samples if k.startswith("0/robot_4/scan/")]
+    assert len(scans) == 121
+    scan = scans[0]
+    assert scan.header.frame_id == "robot_4/base_footprint"
+    assert len(scan.ranges) == 16 and scan.range_max == 3.0
+    assert scan.angle_increment == pytest.approx(2 * np.pi / 16)
+    finite = np.isfinite(np.concatenate([s.ranges for s in scans]))
+    assert finite.any() and (np.concatenate([s.ranges for s in scans])[finite] <= 3.0).all()
+    _check_samples(wire, "kilted")
+
+
+def test_a_lyrical_graph_speaks_lyricals_hashes_and_equals_boids_run(ros2):
+    net = ("--distribution", "lyrical")
+    out, _sim, _controller, wire = _run_lockstep(
+        ros2, "--robots", "4", "--max-cycles", "30", *net, controller_args=net, spy=True)
+    reference = run("reynolds", out=None, seed=0, quiet=True,
+                    env_fields=dict(robots=4, max_cycles=30))
+    _assert_same_recording(Recording.from_parquet(out / "trajectory.parquet"),
+                           reference.recording, "lyrical graph vs boids run")
+    by_topic = _check_samples(wire, "lyrical")
+    assert len(by_topic["/robot_3/cmd_vel"]) == 31
