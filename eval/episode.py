@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -55,7 +56,8 @@ def bind_policy(policy: Policy, env: BoidsEnv) -> None:
 
 def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
                 options: dict[str, Any] | None = None, record: bool = True,
-                frame_every: int = 0) -> EpisodeResult:
+                frame_every: int = 0,
+                on_step: Callable[[BoidsEnv, int], None] | None = None) -> EpisodeResult:
     """Runs ``policy`` for one whole episode of ``env``.
 
     Args:
@@ -65,6 +67,8 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
         options: reset options (scenario fields for this episode).
         record: keep the trajectory (needed for the extra flock metrics).
         frame_every: keep a rendered frame every this many steps (0: none).
+        on_step: called with the env and the step count after the reset (0) and after every
+            step (a live view); it must not change the env.
     """
     start = time.perf_counter()
     obs, _ = env.reset(seed=seed, options=options)
@@ -74,6 +78,8 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
     frames: list[npt.NDArray[np.uint8]] = []
     if recorder:
         recorder.capture(env)
+    if on_step is not None:
+        on_step(env, 0)
     step = 0
     reward_total = 0.0
     while env.agents:
@@ -88,6 +94,8 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
         step += 1
         if recorder:
             recorder.capture(env)
+        if on_step is not None:
+            on_step(env, step)
     if frame_every:
         frames.append(env.render())
     recording = recorder.recording(env, seed=seed) if recorder else None

@@ -1,15 +1,24 @@
-"""``boids ros2 sim|controller``: the argument parsing (importing this needs no Zenoh)."""
+"""``boids ros2 sim|controller``: the argument parsing (importing this needs no Zenoh).
+
+The flags it shares with ``boids run`` and ``boids ros`` (the env's, the live view's, the
+policy's) come from :mod:`boids_env.eval.cli`, which passes its helpers in
+(:func:`add_ros2_parser`): this module never imports it back.
+"""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Mapping
 from typing import Any
 
 from boids_env.eval.ros2.wire import DEFAULT_DISTRIBUTION, DEFAULT_ROUTER, DISTRIBUTIONS
 
 
-def add_ros2_parser(sub: argparse._SubParsersAction) -> None:
-    """Adds ``ros2`` (``sim``, ``controller``) to the ``boids`` subparsers."""
+def add_ros2_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> None:
+    """Adds ``ros2`` (``sim``, ``controller``) to the ``boids`` subparsers. ``helpers``:
+    ``boids``' shared flag helpers by name (``add_env_args``, ``env_fields``,
+    ``add_live_args``, ``live_options``, ``policy_extras``, ``reynolds_preset``,
+    ``policy_help``, ``trust_help``)."""
     p = sub.add_parser("ros2", help="the study's graph as ROS 2 nodes over Zenoh (rmw_zenoh's "
                        "conventions; no ROS install)",
                        description="ROS 2 nodes on the study's topics (/robot_k/odom, "
@@ -17,8 +26,8 @@ def add_ros2_parser(sub: argparse._SubParsersAction) -> None:
                        "RMW_IMPLEMENTATION=rmw_zenoh_cpp and its router sees and talks to them. "
                        "Needs the ros2 extra: pip install 'boids-env[ros2]'.")
     ros2 = p.add_subparsers(dest="ros2_command", required=True)
-    _sim_parser(ros2)
-    _controller_parser(ros2)
+    _sim_parser(ros2, helpers)
+    _controller_parser(ros2, helpers)
 
 
 def _add_transport_args(p: argparse.ArgumentParser) -> None:
@@ -59,9 +68,7 @@ def _ros2_options(args: argparse.Namespace) -> Any:
                        twist_stamped=args.twist_stamped)
 
 
-def _sim_parser(sub: argparse._SubParsersAction) -> None:
-    from boids_env.eval.cli import _add_env_args
-
+def _sim_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> None:
     p = sub.add_parser("sim", help="the pymunk world as a ROS 2 simulator node",
                        description="Publishes /robot_k/odom (10 Hz), /tf and /tf_static "
                        "(map -> robot_k/odom -> robot_k/base_footprint), /clock, /map, markers "
@@ -69,7 +76,7 @@ def _sim_parser(sub: argparse._SubParsersAction) -> None:
                        "/robot_k/cmd_vel. Ends with the episode (--episodes N for more), "
                        "prints the study's metrics, writes metrics.json, trajectory.parquet "
                        "and config.json with --out.")
-    _add_env_args(p, "leader path (square); external: driven by /robot_0/cmd_vel",
+    helpers["add_env_args"](p, "leader path (square); external: driven by /robot_0/cmd_vel",
                   "seed of the first episode (0)")
     p.add_argument("--episodes", type=int, default=1, help="episodes to run (1)")
     p.add_argument("--lockstep", action="store_true",
@@ -86,11 +93,11 @@ def _sim_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=None, help="output folder (none: print only)")
     p.add_argument("--quiet", action="store_true")
     _add_transport_args(p)
-    p.set_defaults(func=_cmd_sim)
+    helpers["add_live_args"](p)
+    p.set_defaults(func=_cmd_sim, helpers=helpers)
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
-    from boids_env.eval.cli import _env_fields
     from boids_env.eval.graph.sim import SimOptions
     from boids_env.eval.ros.protocol import CMD_TIMEOUT
     from boids_env.extras import require
@@ -98,29 +105,29 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     if args.no_wait and args.lockstep:
         raise ValueError("--no-wait is for real time; --lockstep always waits for a controller")
     options = SimOptions(
-        env_fields=_env_fields(args), lockstep=args.lockstep, episodes=args.episodes,
+        env_fields=args.helpers["env_fields"](args), lockstep=args.lockstep, episodes=args.episodes,
         seed=args.seed, cmd_timeout=CMD_TIMEOUT if args.cmd_timeout is None
         else args.cmd_timeout, wait_controller=not args.no_wait,
         wait_for=tuple(args.wait_for), out=args.out, quiet=args.quiet)
     ros2 = _ros2_options(args)
+    live = args.helpers["live_options"](args)
     require("ros2", purpose="boids ros2 sim")
     from boids_env.eval.ros2.sim import run_sim
 
-    run_sim(options, ros2)
+    run_sim(options, ros2, live)
     return 0
 
 
-def _controller_parser(sub: argparse._SubParsersAction) -> None:
+def _controller_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> None:
     from boids_env.config import PRESETS
-    from boids_env.eval.cli import POLICY_HELP, TRUST_HELP
 
     p = sub.add_parser("controller", help="any policy as the study's reynolds_controller, a "
                        "ROS 2 node", description="Subscribes to every /robot_k/odom, builds "
                        "the env's observations, publishes every follower's /robot_k/cmd_vel "
                        "and (Reynolds) the rule-force markers on /<node>/markers. Runs until "
                        "stopped (Ctrl-C) or --max-ticks.")
-    p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
-    p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
+    p.add_argument("--policy", default="reynolds", help=helpers["policy_help"])
+    p.add_argument("--trust-model", action="store_true", help=helpers["trust_help"])
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="Reynolds parameters of --policy reynolds (paper)")
     p.add_argument("--leader-weight", type=float, default=None,
@@ -142,16 +149,16 @@ def _controller_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-markers", action="store_true", help="do not publish the markers")
     p.add_argument("--quiet", action="store_true")
     _add_transport_args(p)
-    p.set_defaults(func=_cmd_controller)
+    p.set_defaults(func=_cmd_controller, helpers=helpers)
 
 
 def _cmd_controller(args: argparse.Namespace) -> int:
-    from boids_env.eval.cli import _policy_extras, reynolds_preset
     from boids_env.eval.graph.controller import ControllerOptions
     from boids_env.extras import require
 
-    preset = reynolds_preset([args.policy], args.preset, args.leader_weight)
-    require("ros2", *_policy_extras([args.policy]),
+    helpers = args.helpers
+    preset = helpers["reynolds_preset"]([args.policy], args.preset, args.leader_weight)
+    require("ros2", *helpers["policy_extras"]([args.policy]),
             purpose=f"boids ros2 controller --policy {args.policy}")
     fields: dict[str, Any] = {}
     if args.robots is not None:

@@ -26,6 +26,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import numpy as np
+
 from boids_env.eval.graph.sim import SimCore, SimEpisode, SimFrame, SimOptions, run_episodes
 from boids_env.eval.ros.protocol import (
     CLOCK_START,
@@ -79,12 +81,22 @@ def stop_on_signals(stop: threading.Event) -> Iterator[None]:
 class Ros2Sim:
     """The simulator's ROS 2 transport (see the module's docstring)."""
 
-    def __init__(self, core: SimCore, ros2: Ros2Options) -> None:
+    def __init__(self, core: SimCore, ros2: Ros2Options,
+                 live: dict[str, Any] | None = None) -> None:
         from boids_env.eval.ros2.node import Node
         from boids_env.rosmsgs import Messages
 
         self.core, self.ros2 = core, ros2
         options = core.options
+        self.view = None
+        self._episodes = 0
+        if live is not None:  # the Foxglove live view, beside the ROS 2 topics
+            from boids_env.eval.liveview import FoxgloveView
+
+            self.view = FoxgloveView(core.config, name="boids ros2 sim", **live)
+            if not options.quiet:
+                print(f"live view: open ws://127.0.0.1:{self.view.port} in Foxglove",
+                      flush=True)
         self.stop = threading.Event()
         node = self.node = Node(options.node_name, domain=ros2.domain,
                                 distribution=ros2.distribution, endpoints=ros2.endpoints())
@@ -136,8 +148,6 @@ class Ros2Sim:
                   flush=True)
 
     def _on_leader(self, msg: Any) -> None:
-        import numpy as np
-
         t = self._twist(msg)
         self.core.leader_command = np.array([t.linear.x, t.linear.y])
 
@@ -196,6 +206,9 @@ class Ros2Sim:
 
     def announce(self, info: EpisodeInfo) -> None:
         self.episode_pub.publish(self.msgs.string(info.to_json()))
+        if self.view is not None and self._episodes:
+            self.view.new_episode()
+        self._episodes += 1
 
     def publish(self, frame: SimFrame) -> None:
         ns, m, q = frame.stamp_ns, self.msgs, frame.quaternions
@@ -218,24 +231,30 @@ class Ros2Sim:
                                          frame.lidar_range))
         yaws = self._yaws(frame)
         self.robot_markers.publish(m.robot_markers(ns, 0, frame.positions, yaws))
+        if self.view is not None:
+            headings = None if q is None else np.stack([np.cos(yaws), np.sin(yaws)], axis=-1)
+            self.view.show(frame.tick, frame.positions, headings,
+                           self.core.env.episode_metrics(), frame.scans)
 
     @staticmethod
     def _yaws(frame: SimFrame) -> Any:
-        import numpy as np
-
         if frame.quaternions is None:
             return np.zeros(len(frame.positions))
         return 2 * np.arctan2(frame.quaternions[:, 0], frame.quaternions[:, 1])
 
     def close(self) -> None:
+        if self.view is not None:
+            self.view.close()
         self.node.close()
 
 
-def run_sim(options: SimOptions, ros2: Ros2Options) -> list[SimEpisode]:
+def run_sim(options: SimOptions, ros2: Ros2Options,
+            live: dict[str, Any] | None = None) -> list[SimEpisode]:
     """Runs ``boids ros2 sim``: the episodes, each one's metrics table printed and, with
-    ``options.out``, its files written."""
+    ``options.out``, its files written; ``live``: also the Foxglove live view
+    (:class:`~boids_env.eval.liveview.FoxgloveView`'s keyword arguments)."""
     core = SimCore(options, "boids ros2 sim")  # config errors before the network
-    transport = Ros2Sim(core, ros2)
+    transport = Ros2Sim(core, ros2, live)
     try:
         with stop_on_signals(transport.stop):
             return run_episodes(core, transport, "ros2 sim", {"ros2": ros2.summary()})
