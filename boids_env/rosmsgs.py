@@ -1,7 +1,9 @@
 """ROS messages of a recording, for :func:`boids_env.rosbag.write_bag`: odometry and commands
 as the original system recorded them, plus what RViz and Foxglove need to show the flock as
-the study's Fig. 5 did: ``/clock``, ``/tf`` (``map`` -> ``robot_k``), robot markers, the rule
-forces as marker arrows and the leader's scripted path.
+the study's Fig. 5 did: ``/clock``, ``/tf`` (REP 105: ``map`` -> ``robot_k/odom`` ->
+``robot_k/base_footprint``), robot markers, the rule forces as marker arrows and the leader's
+scripted path; and what the live ROS 2 nodes publish (:mod:`boids_env.eval.ros2`): one module
+builds the messages of the bags and of the live topics alike.
 
 The same builders serve ROS 1 (Noetic definitions) and ROS 2 (Humble definitions, which are
 Jazzy's on the wire for every type used here) through rosbags' type stores.
@@ -126,18 +128,6 @@ class Messages:
 
     def clock(self, ns: int) -> Any:
         return self.t["rosgraph_msgs/msg/Clock"](clock=self.time(ns))
-
-    def tf(self, ns: int, seq: int, positions: FloatArray, yaws: FloatArray) -> Any:
-        """tf2_msgs/TFMessage: ``map`` -> ``robot_k`` for every robot."""
-        t = self.t
-        transforms = []
-        for k, ((x, y), yaw) in enumerate(zip(positions, yaws, strict=True)):
-            transform = t["geometry_msgs/msg/Transform"](
-                translation=self._vec(x=float(x), y=float(y), z=0.0),
-                rotation=self.quaternion(float(yaw)))
-            transforms.append(t["geometry_msgs/msg/TransformStamped"](
-                header=self.header(ns, seq), child_frame_id=f"robot_{k}", transform=transform))
-        return t["tf2_msgs/msg/TFMessage"](transforms=transforms)
 
     def transforms(self, ns: int, seq: int, parents: list[str], children: list[str],
                    positions: FloatArray, quaternions: FloatArray | None) -> Any:
