@@ -157,6 +157,9 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bag", action="store_true", help="also write a ROS 1 bag (ros extra)")
     p.add_argument("--mcap", action="store_true",
                    help="also write a ROS 2 bag with MCAP storage, episode_mcap/ (ros extra)")
+    p.add_argument("--twist-stamped", action="store_true",
+                   help="the bags' cmd_vel as geometry_msgs/TwistStamped (a TurtleBot3 on "
+                   "Jazzy and later) instead of Twist; with --bag or --mcap")
     p.add_argument("--bag-start", type=parse_start, default=None,
                    help="the bags' first stamp: ISO 8601 date-time (UTC unless it names an "
                    "offset) or Unix seconds (default: now)")
@@ -261,6 +264,8 @@ def _check_run_flags(args: argparse.Namespace) -> None:
                              f"--render human")
     elif args.fast is not None:
         raise ValueError("--fast is the live window's fast mode: it needs --render human")
+    if args.twist_stamped and not (args.bag or args.mcap):
+        raise ValueError("--twist-stamped sets the bags' cmd_vel type: add --bag or --mcap")
     if args.fast is not None and not 0 < args.fast <= MAX_FAST:  # NaN fails too
         raise ValueError(f"--fast must be a speed-up in (0, {MAX_FAST:g}] times real time, "
                          f"got {args.fast:g}")
@@ -346,7 +351,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     run(args.policy, out=args.out, overwrite=args.overwrite, seed=args.seed,
         preset=preset, leader_weight=args.leader_weight, video=args.video, bag=args.bag,
         mcap=args.mcap, bag_start=args.bag_start, env_fields=fields,
-        trust_model=args.trust_model, live=live)
+        trust_model=args.trust_model, live=live, twist_stamped=args.twist_stamped)
     return 0
 
 

@@ -91,7 +91,7 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         bag_start: float | None = None, frame_every: int = 2,
         env_fields: dict[str, Any] | None = None, quiet: bool = False,
         progress: bool = True, trust_model: bool = False,
-        live: dict[str, Any] | None = None) -> EpisodeResult:
+        live: dict[str, Any] | None = None, twist_stamped: bool = False) -> EpisodeResult:
     """Runs one episode and writes its outputs to ``out``.
 
     Args:
@@ -116,6 +116,8 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         live: serve the episode live over Foxglove's WebSocket protocol while it runs: the
             keyword arguments of :class:`~boids_env.eval.liveview.FoxgloveView` (``port``,
             ``speed``, ``wait``); None: no live view.
+        twist_stamped: the bags' ``cmd_vel`` as geometry_msgs/TwistStamped (a TurtleBot3 on
+            Jazzy and later) instead of Twist.
     """
     fmt = ("gif" if video else None) if isinstance(video, bool) or video is None else video
     if fmt is not None:
@@ -172,10 +174,11 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
 
             began = time.perf_counter()
             if bag:
-                write_bag(result.recording, tmp / "episode.bag", start=bag_start)
+                write_bag(result.recording, tmp / "episode.bag", start=bag_start,
+                          twist_stamped=twist_stamped)
             if mcap:
                 write_bag(result.recording, tmp / "episode_mcap", format="mcap",
-                          start=bag_start)
+                          start=bag_start, twist_stamped=twist_stamped)
             timings.append(f"bags {time.perf_counter() - began:.1f} s")
     written = sorted(p.name + ("/" if p.is_dir() else "") for p in folder.out.iterdir())
     say(f"wrote {', '.join(written)} to {folder.out}")
