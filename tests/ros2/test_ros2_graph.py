@@ -186,3 +186,16 @@ def test_a_lyrical_graph_speaks_lyricals_hashes_and_equals_boids_run(ros2):
                            reference.recording, "lyrical graph vs boids run")
     by_topic = _check_samples(wire, "lyrical")
     assert len(by_topic["/robot_3/cmd_vel"]) == 31
+
+
+def test_several_episodes_reset_the_controller_through_the_episode_topic(ros2):
+    """Each episode is announced on the latched /boids/episode; the controller resets its
+    policy with the episode's seed, so every episode equals boids run with its seed."""
+    out, _sim, controller, _ = _run_lockstep(ros2, "--robots", "5", "--max-cycles", "25",
+                                             "--episodes", "2", "--seed", "3")
+    for index, seed in enumerate((3, 4)):
+        reference = run("reynolds", out=None, seed=seed, quiet=True,
+                        env_fields=dict(robots=5, max_cycles=25))
+        ours = Recording.from_parquet(out / f"episode_{index:03d}" / "trajectory.parquet")
+        _assert_same_recording(ours, reference.recording, f"episode {index} (seed {seed})")
+    assert "new episode (episode 1, seed 4)" in controller.output(), controller.output()
