@@ -158,8 +158,6 @@ def _cmd_controller(args: argparse.Namespace) -> int:
 
     helpers = args.helpers
     preset = helpers["reynolds_preset"]([args.policy], args.preset, args.leader_weight)
-    require("ros2", *helpers["policy_extras"]([args.policy]),
-            purpose=f"boids ros2 controller --policy {args.policy}")
     fields: dict[str, Any] = {}
     if args.robots is not None:
         fields["robots"] = args.robots
@@ -168,12 +166,14 @@ def _cmd_controller(args: argparse.Namespace) -> int:
             raise ValueError("--arena-half-size goes with --robots (otherwise the simulator's "
                              "config is used)")
         fields["arena_half_size"] = args.arena_half_size
+    ros2 = _ros2_options(args)
+    require("ros2", *helpers["policy_extras"]([args.policy]),
+            purpose=f"boids ros2 controller --policy {args.policy}")
     options = ControllerOptions(
         policy=args.policy, preset=preset, leader_weight=args.leader_weight,
         env_fields=fields, sync=args.sync, seed=args.seed, max_ticks=args.max_ticks,
         config_wait=args.config_wait, markers=not args.no_markers, quiet=args.quiet,
         trust_model=args.trust_model)
-    ros2 = _ros2_options(args)
     from boids_env.eval.ros2.controller import run_controller
 
     run_controller(options, ros2)
