@@ -93,12 +93,12 @@ class ControllerCore:
         policy: the loaded policy (:func:`controller_policy`).
         base: the odometry source's env config (the simulator's).
         name: the node's name, for messages.
-        episode: returns the episode the simulator announced last (or None), asked when
-            the stamps jump.
+        episode: given the stamp (ns) of a tick that does not continue the last one, returns
+            the episode the simulator announced last (or None).
     """
 
     def __init__(self, options: ControllerOptions, policy: Policy, base: EnvConfig,
-                 name: str, episode: Callable[[], EpisodeInfo | None]) -> None:
+                 name: str, episode: Callable[[int], EpisodeInfo | None]) -> None:
         self.options = options
         self.policy = policy
         self.name = name
@@ -128,7 +128,7 @@ class ControllerCore:
         """Resets the policy (and the observer) at the first tick of every episode."""
         if is_continuation(self._last_stamp, stamp, self.dt):
             return
-        info = self._episode_info()
+        info = self._episode_info(stamp)
         if self._last_stamp is None:
             fresh = True
         elif info is not None:

@@ -163,7 +163,7 @@ class ControllerNode:
             self.ticks.put(tick)
 
     # -------------------------------------------------------------------------- answers
-    def _episode_param(self) -> EpisodeInfo | None:
+    def _episode_param(self, stamp: int | None = None) -> EpisodeInfo | None:
         try:
             return EpisodeInfo.from_json(self.rospy.get_param(EPISODE_PARAM))
         except KeyError:

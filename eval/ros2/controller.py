@@ -33,6 +33,9 @@ from boids_env.eval.ros2.options import TWIST, Ros2Options
 from boids_env.eval.ros2.sim import MARKERS, ODOM, STRING, stop_on_signals
 from boids_env.eval.ros2.wire import LATCHED
 
+EPISODE_WAIT = 1.0
+"""Seconds a tick that starts an episode waits for the episode's announcement."""
+
 
 class Ros2Controller:
     """The controller node over Zenoh; :meth:`spin` answers ticks until stopped (or
@@ -50,7 +53,7 @@ class Ros2Controller:
         self.name = node.fqn
         self._config_text: str | None = None
         self._episode: EpisodeInfo | None = None
-        self._lock = threading.Lock()
+        self._lock = threading.Condition()
         node.subscribe(EPISODE_TOPIC, STRING, self._on_episode, LATCHED)
         if not options.env_fields:
             node.subscribe(CONFIG_TOPIC, STRING, self._on_config, LATCHED)
@@ -84,9 +87,18 @@ class Ros2Controller:
             return
         with self._lock:
             self._episode = info
+            self._lock.notify_all()
 
-    def _episode_info(self) -> EpisodeInfo | None:
+    def _episode_info(self, stamp: int) -> EpisodeInfo | None:
+        """The latest announced episode; at a tick that starts one (with ``boids ros2 sim``'s
+        config and ``sync="stamp"``, stamps jump only there), waits (at most
+        :data:`EPISODE_WAIT`) for its announcement. The simulator announces an episode before
+        its tick 0, but the announcement and the odometry are different publishers: should
+        they take different routes (a router, then a direct link), tick 0 may come first."""
         with self._lock:
+            if self.options.sync == "stamp" and not self.options.env_fields:
+                self._lock.wait_for(lambda: self._episode is not None
+                                    and self._episode.start_ns == stamp, EPISODE_WAIT)
             return self._episode
 
     def _base_config(self) -> EnvConfig:
