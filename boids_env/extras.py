@@ -9,6 +9,8 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "render": ("pygame", "imageio", "tqdm"),
     "video": ("pygame", "imageio", "imageio_ffmpeg", "tqdm"),
     "ros": ("rosbags",),
+    "ros2": ("zenoh", "rosbags"),
+    "live": ("foxglove",),
     "eval": ("statsmodels", "matplotlib", "tqdm", "tabulate", "markdown"),
     "train": ("stable_baselines3", "torch", "tensorboard", "tqdm", "rich"),
     "ray": ("ray",),

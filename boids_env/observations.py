@@ -522,12 +522,34 @@ def _lidar_block(positions: FloatArray, rays: int, sensors: Sensors,
                  ) -> FloatArray:
     """(F, R): each follower's ranges (m) to static geometry, other robots, a person leader
     and pedestrians, rays evenly spaced in the observation's frame."""
-    assert sensors.scene is not None
     directions = lidar_directions(rays)
     if frame is not None:
         directions = times_matrix(directions, frame.T)  # the frame's axes in the world
+    dirs = np.broadcast_to(directions, (len(positions) - 1, rays, 2))
+    return _ranges_along(positions, dirs, sensors, crowd)
+
+
+def lidar_scans(positions: FloatArray, rays: int, sensors: Sensors,
+                headings: FloatArray | None = None) -> FloatArray:
+    """(F, R): each follower's lidar ranges (m) along rays evenly spaced counter-clockwise
+    from its *own* x axis (its heading, ``headings`` (N, 2) the robots' heading vectors
+    (cos θ, sin θ); the world's x axis for robots without one), what its
+    ``sensor_msgs/LaserScan`` carries; what the rays hit is the observation's lidar's."""
+    assert sensors.scene is not None
+    directions = lidar_directions(rays)
+    dirs = np.broadcast_to(directions, (len(positions) - 1, rays, 2))
+    if headings is not None:
+        c, s = headings[1:, 0:1], headings[1:, 1:2]
+        dirs = np.stack([c * dirs[..., 0] - s * dirs[..., 1],
+                         s * dirs[..., 0] + c * dirs[..., 1]], axis=-1)
+    return _ranges_along(positions, dirs, sensors, None)
+
+
+def _ranges_along(positions: FloatArray, dirs: FloatArray, sensors: Sensors,
+                  crowd: Crowd | None) -> FloatArray:
+    """(F, R) ranges from each follower along its rays ``dirs`` (F, R, 2)."""
+    assert sensors.scene is not None
     origins = positions[1:]
-    dirs = np.broadcast_to(directions, (len(origins), rays, 2))
     ranges = sensors.scene.raycast(origins, dirs, sensors.lidar_range)
     k = min(LIDAR_ROBOTS, len(positions) - 1)
     if k:

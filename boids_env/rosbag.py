@@ -6,8 +6,13 @@ Topics, one message per control step (10 Hz) stamped ``start`` + the episode tim
 - ``/robot_k/odom`` (nav_msgs/Odometry: position, heading and measured velocity) and
   ``/robot_k/cmd_vel`` (geometry_msgs/Twist: the commanded velocity), robot 0 the leader, as
   the original recorded them (:func:`read_bag` needs only these);
-- ``/clock`` (rosgraph_msgs/Clock) and ``/tf`` (tf2_msgs/TFMessage, ``map`` -> ``robot_k``),
-  so that RViz and Foxglove play the bag on its own time;
+- ``/clock`` (rosgraph_msgs/Clock), ``/tf`` (tf2_msgs/TFMessage, ``robot_k/odom`` ->
+  ``robot_k/base_footprint``) and ``/tf_static`` (``map`` -> ``robot_k/odom``, latched, once):
+  REP 105's tree, as a TurtleBot3's odometry gives it (the odometry's frame is
+  ``robot_k/odom``, its child ``robot_k/base_footprint``), so that RViz and Foxglove play the
+  bag on its own time;
+- with a lidar (``lidar_rays``), every follower's ``/robot_k/scan`` (sensor_msgs/LaserScan in
+  its ``base_footprint`` frame); ``cmd_vel`` as TwistStamped on request (``twist_stamped``);
 - ``/markers/robots`` (visualization_msgs/MarkerArray: spheres of the robots' true size, the
   leader red) and ``/markers/forces`` (the policy's rule forces as arrows, when recorded);
 - ``/leader/path`` (nav_msgs/Path: the leader's scripted path, latched, repeated every
@@ -63,6 +68,8 @@ except ImportError as exc:  # pragma: no cover - depends on the install
 
 ODOM = "nav_msgs/msg/Odometry"
 TWIST = "geometry_msgs/msg/Twist"
+TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"
+SCAN = "sensor_msgs/msg/LaserScan"
 CLOCK = "rosgraph_msgs/msg/Clock"
 TF = "tf2_msgs/msg/TFMessage"
 MARKERS = "visualization_msgs/msg/MarkerArray"
@@ -84,7 +91,7 @@ FORMATS = ("ros1", "mcap")
 
 
 def write_bag(recording: Recording, path: str | Path, *, format: str = "ros1",
-              start: float | None = None) -> None:
+              start: float | None = None, twist_stamped: bool = False) -> None:
     """Writes ``recording`` at ``path`` (which must not exist), atomically: ``ros1``, a ROS 1
     bag file (Noetic message definitions), or ``mcap``, a ROS 2 bag folder with MCAP storage
     (Humble definitions, CDR, version 5 metadata).
@@ -95,8 +102,12 @@ def write_bag(recording: Recording, path: str | Path, *, format: str = "ros1",
         format: ``ros1`` or ``mcap``.
         start: Unix time (s) of the recording's time 0, the first stamp; None: now. The
             recording's times are offsets from it.
+        twist_stamped: ``cmd_vel`` as geometry_msgs/TwistStamped (a TurtleBot3 on Jazzy and
+            later), stamped, in the robot's ``base_footprint`` frame; default Twist.
     """
     path = Path(path)
+    if not isinstance(twist_stamped, bool):
+        raise TypeError(f"twist_stamped must be True or False, got {twist_stamped!r}")
     if format not in FORMATS:
         raise ValueError(f"format must be one of {FORMATS}, got {format!r}")
     if path.exists():
@@ -114,13 +125,13 @@ def write_bag(recording: Recording, path: str | Path, *, format: str = "ros1",
         writer_cm = rosbag1.Writer(tmp) if ros1 else rosbag2.Writer(
             tmp, version=8, storage_plugin=StoragePlugin.MCAP)
         with writer_cm as writer:
-            _write_messages(writer, store, ros1, recording, _to_ns(origin))
+            _write_messages(writer, store, ros1, recording, _to_ns(origin), twist_stamped)
         if not ros1:
             _humble_metadata(tmp, path.name)
 
 
 def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
-                    origin: int) -> None:
+                    origin: int, twist_stamped: bool = False) -> None:
     serialize = store.serialize_ros1 if ros1 else store.serialize_cdr
     n = recording.positions.shape[1]
     latched = {"latching": 1} if ros1 else {"offered_qos_profiles": [_qos(latched=True)]}
@@ -130,8 +141,13 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
         return writer.add_connection(topic, msgtype, typestore=store, **(kwargs or usual))
 
     odom = [connect(f"/robot_{k}/odom", ODOM) for k in range(n)]
-    cmd = [connect(f"/robot_{k}/cmd_vel", TWIST) for k in range(n)]
+    cmd_type = TWIST_STAMPED if twist_stamped else TWIST
+    cmd = [connect(f"/robot_{k}/cmd_vel", cmd_type) for k in range(n)]
     clock, tf = connect("/clock", CLOCK), connect("/tf", TF)
+    rays = recording.config.observation.lidar_rays
+    scans = [connect(f"/robot_{k}/scan", SCAN) for k in range(1, n)] if rays else []
+    odom_frames = [f"robot_{k}/odom" for k in range(n)]
+    base_frames = [f"robot_{k}/base_footprint" for k in range(n)]
     robots = connect("/markers/robots", MARKERS)
     forces = connect("/markers/forces", MARKERS) if recording.forces else None
     route = connect(PATH_TOPIC, PATH, **latched) if recording.leader_path is not None else None
@@ -146,20 +162,33 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
                  serialize(build.occupancy_grid(first, scene.occupancy()), GRID))
     writer.write(connect(OBSTACLES_TOPIC, MARKERS, **latched), first,
                  serialize(build.obstacle_markers(first, scene), MARKERS))
+    # REP 105: map -> robot_k/odom (identity, latched) -> robot_k/base_footprint (the pose)
+    writer.write(connect("/tf_static", TF, **latched), first, serialize(build.transforms(
+        first, 0, ["map"] * n, odom_frames, np.zeros((n, 2)), None), TF))
     yaws, velocities, commands, turns = _motion(recording)
+    lidar = _lidar(recording) if rays else None
     per_second = max(1, round(1.0 / recording.config.world.dt))
     for step, offset in enumerate(recording.time):
         ns = origin + round(float(offset) * 1e9)
         pos, vel, com = recording.positions[step], velocities[step], commands[step]
         writer.write(clock, ns, serialize(build.clock(ns), CLOCK))
-        writer.write(tf, ns, serialize(build.tf(ns, step, pos, yaws[step]), TF))
+        turned = np.stack([np.sin(yaws[step] / 2), np.cos(yaws[step] / 2)], axis=-1)
+        writer.write(tf, ns, serialize(build.transforms(ns, step, odom_frames, base_frames,
+                                                        pos, turned), TF))
         for k in range(n):
-            header = build.header(ns, step)
+            header = build.header(ns, step, odom_frames[k])
             msg = build.odometry(header, k, pos[k], vel[k], float(yaws[step, k]),
-                                 float(turns[step, k]))
+                                 float(turns[step, k]), child=base_frames[k])
             writer.write(odom[k], ns, serialize(msg, ODOM))
-            writer.write(cmd[k], ns, serialize(build.twist(float(com[k, 0]), float(com[k, 1]),
-                                                           float(com[k, 2])), TWIST))
+            twist = (float(com[k, 0]), float(com[k, 1]), float(com[k, 2]))
+            writer.write(cmd[k], ns, serialize(
+                build.twist_stamped(build.header(ns, step, base_frames[k]), *twist)
+                if twist_stamped else build.twist(*twist), cmd_type))
+        if lidar is not None:
+            for k, conn in enumerate(scans):
+                header = build.header(ns, step, base_frames[k + 1])
+                writer.write(conn, ns, serialize(build.laser_scan(
+                    header, lidar(step)[k], recording.config.observation.lidar_range), SCAN))
         writer.write(robots, ns, serialize(build.robot_markers(ns, step, pos, yaws[step]),
                                            MARKERS))
         if person is not None:
@@ -179,6 +208,24 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
             assert recording.leader_path is not None
             writer.write(route, ns, serialize(build.path(ns, step, recording.leader_path),
                                               PATH))
+
+
+def _lidar(recording: Recording) -> Any:
+    """``scans(step)``: the followers' lidar ranges (F, R) at a sample, each in its own frame
+    (:func:`~boids_env.observations.lidar_scans`: static geometry and the other robots)."""
+    from boids_env.observations import Observer, lidar_scans
+
+    config = recording.config
+    sensors = Observer(config).sensors
+    rays = config.observation.lidar_rays
+    vectors = None if recording.headings is None else np.stack(
+        [np.cos(recording.headings), np.sin(recording.headings)], axis=-1)
+
+    def scans(step: int) -> np.ndarray:
+        return lidar_scans(recording.positions[step], rays, sensors,
+                           None if vectors is None else vectors[step])
+
+    return scans
 
 
 def _motion(recording: Recording) -> tuple[np.ndarray, ...]:
@@ -298,8 +345,8 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
                     q, w = msg.pose.pose.orientation, msg.twist.twist.angular.z
                     odom.setdefault(k, []).append((stamp, p.x, p.y, v.x, v.y, q.z, q.w, w))
                 else:
-                    cmd.setdefault(k, []).append((msg.linear.x, msg.linear.y,
-                                                  msg.angular.z))
+                    t = msg.twist if hasattr(msg, "twist") else msg  # TwistStamped, or Twist
+                    cmd.setdefault(k, []).append((t.linear.x, t.linear.y, t.angular.z))
     except FileNotFoundError:
         raise
     except Exception as exc:

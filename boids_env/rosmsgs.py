@@ -1,7 +1,9 @@
 """ROS messages of a recording, for :func:`boids_env.rosbag.write_bag`: odometry and commands
 as the original system recorded them, plus what RViz and Foxglove need to show the flock as
-the study's Fig. 5 did: ``/clock``, ``/tf`` (``map`` -> ``robot_k``), robot markers, the rule
-forces as marker arrows and the leader's scripted path.
+the study's Fig. 5 did: ``/clock``, ``/tf`` (REP 105: ``map`` -> ``robot_k/odom`` ->
+``robot_k/base_footprint``), robot markers, the rule forces as marker arrows and the leader's
+scripted path; and what the live ROS 2 nodes publish (:mod:`boids_env.eval.ros2`): one module
+builds the messages of the bags and of the live topics alike.
 
 The same builders serve ROS 1 (Noetic definitions) and ROS 2 (Humble definitions, which are
 Jazzy's on the wire for every type used here) through rosbags' type stores.
@@ -92,6 +94,11 @@ class Messages:
         return self.t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2),
                                                       w=math.cos(yaw / 2))
 
+    def rotation(self, z: float, w: float) -> Any:
+        """A rotation about z given by its quaternion's (z, w) as they are (a live robot's
+        orientation, carried bit for bit)."""
+        return self.t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=float(z), w=float(w))
+
     def pose(self, x: float, y: float, yaw: float, z: float = 0.0) -> Any:
         point = self.t["geometry_msgs/msg/Point"](x=x, y=y, z=z)
         return self.t["geometry_msgs/msg/Pose"](position=point, orientation=self.quaternion(yaw))
@@ -102,15 +109,19 @@ class Messages:
                                                  angular=vec(x=0.0, y=0.0, z=turn_rate))
 
     def odometry(self, header: Any, k: int, position: FloatArray, velocity: FloatArray,
-                 yaw: float, turn_rate: float = 0.0) -> Any:
+                 yaw: float, turn_rate: float = 0.0, *, child: str | None = None,
+                 quaternion: tuple[float, float] | None = None) -> Any:
         """nav_msgs/Odometry of robot ``k``: pose (position, heading) and measured velocity in
         the map frame, as the original's odometry (for a robot with a heading: the twist in
-        its own frame and its turn rate, REP 105)."""
+        its own frame and its turn rate, REP 105). ``child`` replaces the child frame
+        (``robot_k``); ``quaternion`` (z, w) replaces the orientation of ``yaw``."""
         t = self.t
         pose = self.pose(float(position[0]), float(position[1]), yaw)
+        if quaternion is not None:
+            pose.orientation = self.rotation(*quaternion)
         twist = self.twist(float(velocity[0]), float(velocity[1]), turn_rate)
         return t["nav_msgs/msg/Odometry"](
-            header=header, child_frame_id=f"robot_{k}",
+            header=header, child_frame_id=f"robot_{k}" if child is None else child,
             pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=self._zero36),
             twist=t["geometry_msgs/msg/TwistWithCovariance"](twist=twist,
                                                              covariance=self._zero36))
@@ -118,17 +129,44 @@ class Messages:
     def clock(self, ns: int) -> Any:
         return self.t["rosgraph_msgs/msg/Clock"](clock=self.time(ns))
 
-    def tf(self, ns: int, seq: int, positions: FloatArray, yaws: FloatArray) -> Any:
-        """tf2_msgs/TFMessage: ``map`` -> ``robot_k`` for every robot."""
+    def transforms(self, ns: int, seq: int, parents: list[str], children: list[str],
+                   positions: FloatArray, quaternions: FloatArray | None) -> Any:
+        """tf2_msgs/TFMessage: ``parents[k]`` -> ``children[k]`` translated by
+        ``positions[k]`` and turned by ``quaternions[k]`` ((z, w); None: no rotation)."""
         t = self.t
         transforms = []
-        for k, ((x, y), yaw) in enumerate(zip(positions, yaws, strict=True)):
+        for k, (x, y) in enumerate(np.asarray(positions, dtype=float).tolist()):
+            rotation = self.rotation(0.0, 1.0) if quaternions is None else self.rotation(
+                *quaternions[k])
             transform = t["geometry_msgs/msg/Transform"](
-                translation=self._vec(x=float(x), y=float(y), z=0.0),
-                rotation=self.quaternion(float(yaw)))
+                translation=self._vec(x=x, y=y, z=0.0), rotation=rotation)
             transforms.append(t["geometry_msgs/msg/TransformStamped"](
-                header=self.header(ns, seq), child_frame_id=f"robot_{k}", transform=transform))
+                header=self.header(ns, seq, parents[k]), child_frame_id=children[k],
+                transform=transform))
         return t["tf2_msgs/msg/TFMessage"](transforms=transforms)
+
+    def twist_stamped(self, header: Any, vx: float, vy: float, turn_rate: float = 0.0) -> Any:
+        """geometry_msgs/TwistStamped (a TurtleBot3's ``cmd_vel`` from Jazzy on)."""
+        return self.t["geometry_msgs/msg/TwistStamped"](header=header,
+                                                        twist=self.twist(vx, vy, turn_rate))
+
+    def laser_scan(self, header: Any, ranges: FloatArray, range_max: float,
+                   scan_time: float = 0.0) -> Any:
+        """sensor_msgs/LaserScan of ``ranges`` (m), rays evenly spaced counter-clockwise
+        from the frame's x axis over a full turn; a ray that hits nothing within
+        ``range_max`` reads +inf (REP 117)."""
+        rays = len(ranges)
+        step = 2 * math.pi / rays if rays else 0.0
+        values = np.asarray(ranges, dtype=np.float32)
+        values = np.where(values >= np.float32(range_max), np.float32(np.inf), values)
+        return self.t["sensor_msgs/msg/LaserScan"](
+            header=header, angle_min=0.0, angle_max=float(step * (rays - 1)),
+            angle_increment=float(step), time_increment=0.0, scan_time=float(scan_time),
+            range_min=0.0, range_max=float(range_max), ranges=values.astype(np.float32),
+            intensities=np.zeros(0, dtype=np.float32))
+
+    def string(self, text: str) -> Any:
+        return self.t["std_msgs/msg/String"](data=text)
 
     def marker(self, header: Any, ns: str, marker_id: int, kind: int, action: int, pose: Any,
                scale: tuple[float, float, float], colour: Any, points: list[Any]) -> Any:

@@ -35,6 +35,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     _eval_parser(sub)
     _report_parser(sub)
     _ros_parser(sub)
+    from boids_env.eval.ros2.cli import add_ros2_parser
+
+    add_ros2_parser(sub, dict(
+        add_env_args=_add_env_args, env_fields=_env_fields, add_live_args=add_live_args,
+        live_options=live_options, policy_extras=_policy_extras,
+        reynolds_preset=reynolds_preset, policy_help=POLICY_HELP, trust_help=TRUST_HELP))
     _scenes_parser(sub)
     _select_parser(sub)
 
@@ -153,6 +159,9 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bag", action="store_true", help="also write a ROS 1 bag (ros extra)")
     p.add_argument("--mcap", action="store_true",
                    help="also write a ROS 2 bag with MCAP storage, episode_mcap/ (ros extra)")
+    p.add_argument("--twist-stamped", action="store_true",
+                   help="the bags' cmd_vel as geometry_msgs/TwistStamped (a TurtleBot3 on "
+                   "Jazzy and later) instead of Twist; with --bag or --mcap")
     p.add_argument("--bag-start", type=parse_start, default=None,
                    help="the bags' first stamp: ISO 8601 date-time (UTC unless it names an "
                    "offset) or Unix seconds (default: now)")
@@ -162,7 +171,34 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fast", type=float, default=None,
                    help="speed-up of the live window's fast mode, key f, with --render human "
                    f"(a number in (0, {MAX_FAST:g}]; 4)")
+    add_live_args(p)
     p.set_defaults(func=_cmd_run)
+
+
+def add_live_args(p: argparse.ArgumentParser) -> None:
+    """``--live foxglove`` and its options (``boids run``, ``boids ros2 sim``)."""
+    p.add_argument("--live", choices=("foxglove",), default=None,
+                   help="serve the running episode over Foxglove's WebSocket protocol "
+                   "(live extra): open ws://127.0.0.1:PORT in Foxglove")
+    p.add_argument("--live-port", type=int, default=8765,
+                   help="port of the live view (8765; 0: any free port)")
+    p.add_argument("--live-speed", type=float, default=1.0,
+                   help="the live view's pace, times real time (1; 0: as fast as it runs)")
+    p.add_argument("--live-wait", type=float, default=0.0,
+                   help="seconds to wait for a viewer to subscribe before the first tick (0)")
+
+
+def live_options(args: argparse.Namespace) -> dict[str, Any] | None:
+    """The live view's keyword arguments, or None without ``--live``; its extra checked."""
+    if args.live is None:
+        given = [f for f, on in (("--live-port", args.live_port != 8765),
+                                 ("--live-speed", args.live_speed != 1.0),
+                                 ("--live-wait", args.live_wait != 0.0)) if on]
+        if given:
+            raise ValueError(f"{', '.join(given)} set the live view: add --live foxglove")
+        return None
+    require("live", purpose="--live foxglove")
+    return {"port": args.live_port, "speed": args.live_speed, "wait": args.live_wait}
 
 
 def parse_start(text: str) -> float:
@@ -230,6 +266,8 @@ def _check_run_flags(args: argparse.Namespace) -> None:
                              f"--render human")
     elif args.fast is not None:
         raise ValueError("--fast is the live window's fast mode: it needs --render human")
+    if args.twist_stamped and not (args.bag or args.mcap):
+        raise ValueError("--twist-stamped sets the bags' cmd_vel type: add --bag or --mcap")
     if args.fast is not None and not 0 < args.fast <= MAX_FAST:  # NaN fails too
         raise ValueError(f"--fast must be a speed-up in (0, {MAX_FAST:g}] times real time, "
                          f"got {args.fast:g}")
@@ -281,6 +319,10 @@ def _with_settings(fields: dict[str, Any], settings: list[tuple[str, Any]]) -> d
 
 def _cmd_run(args: argparse.Namespace) -> int:
     _check_run_flags(args)
+    if args.render == "human" and args.live is not None:
+        raise ValueError("--live foxglove serves the episode to Foxglove; --render human "
+                         "opens the pygame window: pick one")
+    live = live_options(args)
     preset = reynolds_preset([args.policy], args.preset, args.leader_weight)
     fields = _env_fields(args)
     needs = _policy_extras([args.policy])
@@ -311,7 +353,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     run(args.policy, out=args.out, overwrite=args.overwrite, seed=args.seed,
         preset=preset, leader_weight=args.leader_weight, video=args.video, bag=args.bag,
         mcap=args.mcap, bag_start=args.bag_start, env_fields=fields,
-        trust_model=args.trust_model)
+        trust_model=args.trust_model, live=live, twist_stamped=args.twist_stamped)
     return 0
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -158,7 +159,8 @@ def check_fits(policy: Policy, envs: list[dict[str, Any]]) -> None:
 
 def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
                 options: dict[str, Any] | None = None, record: bool = True,
-                frame_every: int = 0) -> EpisodeResult:
+                frame_every: int = 0,
+                on_step: Callable[[BoidsEnv, int], None] | None = None) -> EpisodeResult:
     """Runs ``policy`` for one whole episode of ``env``.
 
     Args:
@@ -168,6 +170,8 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
         options: reset options (scenario fields for this episode).
         record: keep the trajectory (needed for the extra flock metrics).
         frame_every: keep a rendered frame every this many steps (0: none).
+        on_step: called with the env and the step count after the reset (0) and after every
+            step (a live view); it must not change the env.
     """
     start = time.perf_counter()
     obs, _ = env.reset(seed=seed, options=options)
@@ -177,6 +181,8 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
     frames: list[npt.NDArray[np.uint8]] = []
     if recorder:
         recorder.capture(env)
+    if on_step is not None:
+        on_step(env, 0)
     step = 0
     reward_total = 0.0
     while env.agents:
@@ -191,6 +197,8 @@ def run_episode(env: BoidsEnv, policy: Policy, seed: int | None = None, *,
         step += 1
         if recorder:
             recorder.capture(env)
+        if on_step is not None:
+            on_step(env, step)
     if frame_every:
         frames.append(env.render())
     recording = recorder.recording(env, seed=seed) if recorder else None

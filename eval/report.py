@@ -10,6 +10,7 @@ CSVs an earlier build wrote that this one does not (another suite's verdicts).
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 

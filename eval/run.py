@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -66,12 +67,31 @@ def metrics_table(metrics: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _live_view(env: BoidsEnv, live: dict[str, Any] | None, quiet: bool
+               ) -> tuple[Any, Callable[[BoidsEnv, int], None] | None]:
+    """The Foxglove live view of ``run`` and the step hook that feeds it (None, None
+    without one)."""
+    if live is None:
+        return None, None
+    from boids_env.eval.liveview import FoxgloveView, env_frame
+
+    view = FoxgloveView(env.config, **live)
+    if not quiet:
+        print(f"live view: open ws://127.0.0.1:{view.port} in Foxglove", flush=True)
+
+    def on_step(env: BoidsEnv, step: int) -> None:
+        view.show(step, **env_frame(env))
+
+    return view, on_step
+
+
 def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: bool = False,
         seed: int = 0, preset: str = "paper", leader_weight: float | None = None,
         video: bool | str | None = None, bag: bool = False, mcap: bool = False,
         bag_start: float | None = None, frame_every: int = 2,
         env_fields: dict[str, Any] | None = None, quiet: bool = False,
-        progress: bool = True, trust_model: bool = False) -> EpisodeResult:
+        progress: bool = True, trust_model: bool = False,
+        live: dict[str, Any] | None = None, twist_stamped: bool = False) -> EpisodeResult:
     """Runs one episode and writes its outputs to ``out``.
 
     Args:
@@ -93,6 +113,11 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         progress: progress bar while the video is encoded.
         trust_model: a model zip may load through SB3's own load, which runs code stored in
             the file (``load_policy(trust=True)``).
+        live: serve the episode live over Foxglove's WebSocket protocol while it runs: the
+            keyword arguments of :class:`~boids_env.eval.liveview.FoxgloveView` (``port``,
+            ``speed``, ``wait``); None: no live view.
+        twist_stamped: the bags' ``cmd_vel`` as geometry_msgs/TwistStamped (a TurtleBot3 on
+            Jazzy and later) instead of Twist.
     """
     fmt = ("gif" if video else None) if isinstance(video, bool) or video is None else video
     if fmt is not None:
@@ -109,10 +134,13 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
     params = getattr(pol, "params", None)
     changes = world_changes(pol, env_fields)  # recorded in config.json and printed
     env = BoidsEnv(**env_fields_for(pol, env_fields))
+    view, on_step = _live_view(env, live, quiet)
     try:
-        result = run_episode(env, pol, seed, record=True)
+        result = run_episode(env, pol, seed, record=True, on_step=on_step)
     finally:
         env.close()
+        if view is not None:
+            view.close()
     say = (lambda *a: None) if quiet else print
     name = f"{policy} · preset {preset}" if params is not None else policy
     if env.config.realism.active:
@@ -149,10 +177,11 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
 
             began = time.perf_counter()
             if bag:
-                write_bag(result.recording, tmp / "episode.bag", start=bag_start)
+                write_bag(result.recording, tmp / "episode.bag", start=bag_start,
+                          twist_stamped=twist_stamped)
             if mcap:
                 write_bag(result.recording, tmp / "episode_mcap", format="mcap",
-                          start=bag_start)
+                          start=bag_start, twist_stamped=twist_stamped)
             timings.append(f"bags {time.perf_counter() - began:.1f} s")
     written = sorted(p.name + ("/" if p.is_dir() else "") for p in folder.out.iterdir())
     say(f"wrote {', '.join(written)} to {folder.out}")

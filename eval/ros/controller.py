@@ -24,14 +24,18 @@ import json
 import queue
 import threading
 import time
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from boids_env.config import EnvConfig
-from boids_env.eval.episode import bind_policy, env_fields_for
+from boids_env.eval.graph.controller import (
+    SYNC_MODES,
+    ControllerCore,
+    ControllerOptions,
+    controller_policy,
+)
 from boids_env.eval.ros import reconfigure
 from boids_env.eval.ros.messages import Messages, publisher
 from boids_env.eval.ros.protocol import (
@@ -42,75 +46,16 @@ from boids_env.eval.ros.protocol import (
     Tick,
     TickAssembler,
     cmd_topic,
-    finite_commands,
-    is_continuation,
     odom_topic,
 )
-from boids_env.observations import INITIAL_HEADING, Observer
-from boids_env.policies.base import Policy
-from boids_env.policies.registry import load_policy, split_preset
-from boids_env.vectors import clip_speed
-from boids_env.world.realism import StaleObservations
-from boids_env.world.robots import make_model, quaternion_headings, to_world
-from boids_env.world.scenario import holding
 
-SYNC_MODES = ("stamp", "rate")
+__all__ = ["SYNC_MODES", "ControllerNode", "ControllerOptions", "controller_policy",
+           "run_controller"]
+
 FIRST_CONNECTION_WAIT = 1.0
 """Seconds a command publisher may wait, once, for the odometry source's node to connect to
 it before its first message (a message published before a subscriber connects is lost, and a
 lockstep simulator would then wait for it forever)."""
-
-
-@dataclass(frozen=True)
-class ControllerOptions:
-    """How ``boids ros controller`` runs."""
-
-    policy: str = "reynolds"
-    """A policy spec of :func:`~boids_env.policies.registry.load_policy`."""
-    preset: str = "paper"
-    """Reynolds parameter preset (unless ``policy`` names one)."""
-    leader_weight: float | None = None
-    """Reynolds leader weight override."""
-    env_fields: Mapping[str, Any] = field(default_factory=dict)
-    """Env config fields (``robots`` …) of the odometry source. Empty: the simulator's config
-    (its ``/boids/env_config`` parameter), waited for up to ``config_wait`` seconds."""
-    sync: str = "stamp"
-    """``stamp`` or ``rate`` (see the module's docstring)."""
-    seed: int = 0
-    """Seed for ``policy.reset`` when the simulator announces no episode."""
-    config_wait: float = 30.0
-    """Seconds to wait for the simulator's config parameter."""
-    max_ticks: int | None = None
-    """Stop after answering this many ticks (None: run until shut down)."""
-    markers: bool = True
-    """Publish the rule-force markers when the policy has forces."""
-    quiet: bool = False
-    node_name: str = "reynolds_controller"
-    trust_model: bool = False
-    """A model zip may load through SB3's own load, which runs code stored in the file."""
-
-    def __post_init__(self) -> None:
-        if self.sync not in SYNC_MODES:
-            raise ValueError(f"sync must be one of {SYNC_MODES}, got {self.sync!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
-        if not (isinstance(self.config_wait, int | float) and 0 <= self.config_wait <= 3600):
-            raise ValueError(f"config_wait must be in [0, 3600] s, got {self.config_wait!r}")
-        if self.max_ticks is not None and (isinstance(self.max_ticks, bool) or not isinstance(
-                self.max_ticks, int) or self.max_ticks < 1):
-            raise ValueError(f"max_ticks must be a positive integer or None, got "
-                             f"{self.max_ticks!r}")
-        if not isinstance(self.trust_model, bool):
-            raise TypeError(f"trust_model must be True or False, got {self.trust_model!r}")
-        split_preset(self.policy, self.preset)  # a bad spec or preset fails before ROS starts
-
-
-def controller_policy(options: ControllerOptions) -> Policy:
-    """The policy the node runs (loaded before the node touches ROS)."""
-    overrides = {} if options.leader_weight is None else {
-        "leader_weight": options.leader_weight}
-    spec, preset = split_preset(options.policy, options.preset)
-    return load_policy(spec, preset=preset, trust=options.trust_model, **overrides)
 
 
 class ControllerNode:
@@ -135,17 +80,10 @@ class ControllerNode:
                         disable_signals=True)
         self.name = rospy.get_name()
         base = self._base_config()
-        self.config = base.replace(**env_fields_for(self.policy, {}))
-        self.observer = Observer(self.config)
-        self.layout = self.observer.layout
-        bind_policy(self.policy, self)  # the layout, the scene, the robots' top speed: as an env
-        self.model = make_model(self.config.world)
-        """The robots' model: for robots with a heading, the driver's law the env applies
-        in-process is applied here, and (v, ω) goes out on cmd_vel."""
-        self.stale: StaleObservations | None = None
-        self.robots = self.config.scenario.robots
-        self.dt = self.config.world.dt
-        self.agents = [f"follower_{i}" for i in range(1, self.robots)]
+        core = self.core = ControllerCore(options, self.policy, base, self.name,
+                                          self._episode_param)
+        self.config, self.observer, self.model = core.config, core.observer, core.model
+        self.robots, self.dt, self.agents = core.robots, core.dt, core.agents
         rospy.set_param("~policy", options.policy)
         self.cmd_pubs = [publisher(rospy, cmd_topic(k), Twist) for k in range(1, self.robots)]
         self.marker_pub = (rospy.Publisher("~markers", MarkerArray, queue_size=10)
@@ -172,12 +110,6 @@ class ControllerNode:
         self.ticks: queue.Queue[Tick] = queue.Queue()
         self._source: str | None = None
         self._deaf: set[str] = set()
-        self._last_stamp: int | None = None
-        self.episode: EpisodeInfo | None = None
-        self._episode_start: int | None = None
-        self.answered = 0
-        self.nonfinite = 0
-        """Commands sent as a stop because they were not finite (non-finite odometry)."""
         self.odom_subs = [rospy.Subscriber(odom_topic(k), Odometry, self._on_odom,
                                            callback_args=k, queue_size=QUEUE_SIZE,
                                            tcp_nodelay=True) for k in range(self.robots)]
@@ -231,48 +163,11 @@ class ControllerNode:
             self.ticks.put(tick)
 
     # -------------------------------------------------------------------------- answers
-    def _episode_param(self) -> EpisodeInfo | None:
+    def _episode_param(self, stamp: int | None = None) -> EpisodeInfo | None:
         try:
             return EpisodeInfo.from_json(self.rospy.get_param(EPISODE_PARAM))
         except KeyError:
             return None
-
-    def _maybe_reset(self, stamp: int) -> None:
-        """Resets the policy (and the observer) at the first tick of every episode."""
-        if is_continuation(self._last_stamp, stamp, self.dt):
-            return
-        info = self._episode_param()
-        if self._last_stamp is None:
-            fresh = True
-        elif info is not None:
-            fresh = self.episode is None or info.index != self.episode.index
-        else:
-            fresh = stamp < self._last_stamp  # the source's clock restarted
-        if not fresh:
-            return
-        if info is not None and info.start_ns > stamp:
-            info = None  # announced for a later tick: not this episode's
-        self.episode = info
-        self._episode_start = info.start_ns if info is not None else stamp
-        seed = info.seed if info is not None else self.options.seed
-        self.policy.reset(seed)
-        self.observer.reset(np.random.default_rng(seed),
-                            info.initial_heading if info is not None else INITIAL_HEADING)
-        p = self.config.realism.resolved()["stale_observations"]
-        self.stale = StaleObservations(p, seed) if p > 0 else None  # as the env draws them
-        if not self.options.quiet:
-            which = f"episode {info.index}, seed {seed}" if info else f"seed {seed}"
-            print(f"{self.name}: new episode ({which}) at stamp {stamp / 1e9:.1f} s",
-                  flush=True)
-
-    def _holding(self, stamp: int) -> bool:
-        """Whether the followers are held still at ``stamp``: the first ``startup_time``
-        seconds of an episode when the config (a learned model's env fields) asks for
-        ``startup_hold``, as the env holds them in-process."""
-        sc = self.config.scenario
-        if not sc.startup_hold or self._episode_start is None:
-            return False
-        return holding((stamp - self._episode_start) / 1e9, sc.startup_time)
 
     def _await_listener(self) -> None:
         """Before the first command to a node that sends odometry, waits (once, at most
@@ -289,51 +184,29 @@ class ControllerNode:
             time.sleep(0.005)
             waited += 0.005
 
+    @property
+    def answered(self) -> int:
+        """Ticks answered so far."""
+        return self.core.answered
+
     def answer(self, tick: Tick) -> np.ndarray:
         """The commands (F, 2) for one tick, published (world frame; (v, ω) for robots with
         a heading); also the markers."""
-        self._maybe_reset(tick.stamp_ns)
-        self._last_stamp = tick.stamp_ns
         self._apply_params()
-        velocities, headings = tick.velocities, None
-        if self.model.has_heading:  # REP 105 odometry, read back as the env observes it
-            assert tick.quaternions is not None
-            headings = quaternion_headings(tick.quaternions[:, 0], tick.quaternions[:, 1])
-            velocities = to_world(velocities, headings)
-        obs = self.observer(tick.positions, velocities, headings=headings)
-        if self.stale is not None:
-            obs = self.stale(obs)
-        actions = self.policy.act(dict(zip(self.agents, obs, strict=True)))
-        raw = np.array([actions[a] for a in self.agents], dtype=np.float64)
-        if headings is None:
-            # as the env parses them: float64, then into the world frame (no speed clip here:
-            # the robot, or the simulator, limits the speed, as the env does)
-            commands = self.observer.to_world(raw)
-        elif self.config.observation.action == "unicycle":  # (v, ω) from the policy itself
-            w = self.config.world
-            commands = np.clip(raw, [-w.max_speed, -w.max_turn_rate],
-                               [w.max_speed, w.max_turn_rate])
-        else:  # the robot's driver: its law from the speed-limited world-frame command
-            world = clip_speed(self.observer.to_world(raw), self.config.world.max_speed)
-            commands = self.model.native(world, headings[1:])
-        if self._holding(tick.stamp_ns):
-            commands = np.zeros_like(commands)
-        commands, bad = finite_commands(commands)
-        if bad:
-            self.nonfinite += bad
-            self.rospy.logwarn_throttle(5.0, f"{self.name}: {bad} non-finite command(s) (from "
-                                        f"non-finite odometry?) sent as a stop")
+        before = self.core.nonfinite
+        commands = self.core.answer(tick)
+        if self.core.nonfinite > before:
+            self.rospy.logwarn_throttle(5.0, f"{self.name}: {self.core.nonfinite - before} "
+                                        f"non-finite command(s) (from non-finite odometry?) "
+                                        f"sent as a stop")
         self._await_listener()
-        for pub, (a, b) in zip(self.cmd_pubs, commands.tolist(), strict=True):
-            pub.publish(self.msgs.twist(a, b) if headings is None
-                        else self.msgs.twist(a, 0.0, b))
-        forces = getattr(self.policy, "forces", None)
-        if forces and self.marker_pub is not None:
-            stamp = self.msgs.time(tick.stamp_ns)
-            world = {rule: self.observer.to_world(np.asarray(f, dtype=np.float64))
-                     for rule, f in forces.items()}
-            self.marker_pub.publish(self.msgs.force_markers(stamp, tick.positions, world))
-        self.answered += 1
+        heading = self.core.heading
+        for pub, command in zip(self.cmd_pubs, commands, strict=True):
+            pub.publish(self.msgs.twist(*self.core.twist_fields(command, heading)))
+        world = self.core.world_forces()
+        if world and self.marker_pub is not None:
+            self.marker_pub.publish(self.msgs.force_markers(self.msgs.time(tick.stamp_ns),
+                                                            tick.positions, world))
         return commands
 
     def spin(self) -> int:

@@ -61,6 +61,12 @@ QUEUE_SIZE = 1000
 """Publisher and subscriber queues: far more than one tick's messages, so a lockstep burst is
 never dropped."""
 MAP_FRAME = "map"
+CONFIG_TOPIC = "/boids/env_config"
+"""ROS 2 (no parameter server): the simulator's env config as a latched std_msgs/String, the
+JSON of :data:`CONFIG_PARAM`."""
+EPISODE_TOPIC = "/boids/episode"
+"""ROS 2: the current episode as a latched std_msgs/String, the JSON of
+:data:`EPISODE_PARAM`, published before the episode's tick 0."""
 
 
 def odom_topic(robot: int) -> str:
@@ -76,6 +82,17 @@ def cmd_topic(robot: int) -> str:
 def robot_frame(robot: int) -> str:
     """The robot's tf frame (the odometry's child frame), ``robot_k``."""
     return f"robot_{robot}"
+
+
+def odom_frame(robot: int) -> str:
+    """REP 105: the robot's odometry frame, ``robot_k/odom`` (a child of ``map``)."""
+    return f"robot_{robot}/odom"
+
+
+def base_frame(robot: int) -> str:
+    """REP 105: the robot's body frame on the ground, ``robot_k/base_footprint`` (a child of
+    its odometry frame, as a TurtleBot3 names it)."""
+    return f"robot_{robot}/base_footprint"
 
 
 def period_ns(dt: float) -> int:

@@ -60,7 +60,7 @@ def test_headings_follow_the_command_then_the_velocity_and_are_kept_when_still()
 def test_every_topic_at_10_hz_from_the_given_start(bags, recording, name):
     msgs = _messages(bags / name)
     steps, n = recording.positions.shape[:2]
-    once = {"/map", "/markers/obstacles"}
+    once = {"/map", "/markers/obstacles", "/tf_static"}
     topics = {"/clock", "/tf", "/markers/robots", "/markers/forces", "/leader/path", *once,
               *(f"/robot_{k}/{kind}" for k in range(n) for kind in ("odom", "cmd_vel"))}
     assert set(msgs) == topics, set(msgs) ^ topics
@@ -81,15 +81,23 @@ def test_tf_odometry_and_markers_show_the_flock(bags, recording, name):
     msgs = _messages(bags / name)
     step = 30
     yaw = headings(recording.commanded, recording.velocities)[step]
+    # REP 105: map -> robot_k/odom (static, identity) -> robot_k/base_footprint (the pose)
+    (_, static), = msgs["/tf_static"]
+    assert [(t.header.frame_id, t.child_frame_id) for t in static.transforms] == [
+        ("map", f"robot_{k}/odom") for k in range(5)]
+    assert all((t.transform.translation.x, t.transform.translation.y, t.transform.rotation.w)
+               == (0.0, 0.0, 1.0) for t in static.transforms)
     tf = msgs["/tf"][step][1].transforms
-    assert [t.child_frame_id for t in tf] == [f"robot_{k}" for k in range(5)]
-    assert all(t.header.frame_id == "map" for t in tf)
+    assert [(t.header.frame_id, t.child_frame_id) for t in tf] == [
+        (f"robot_{k}/odom", f"robot_{k}/base_footprint") for k in range(5)]
     for k, t in enumerate(tf):
         pos = recording.positions[step, k]
         assert (t.transform.translation.x, t.transform.translation.y) == tuple(pos), k
         q = t.transform.rotation
         assert math.isclose(2 * math.atan2(q.z, q.w), yaw[k], abs_tol=1e-9), k
     odom = msgs["/robot_2/odom"][step][1]
+    assert (odom.header.frame_id, odom.child_frame_id) == ("robot_2/odom",
+                                                           "robot_2/base_footprint")
     q = odom.pose.pose.orientation
     assert math.isclose(2 * math.atan2(q.z, q.w), yaw[2], abs_tol=1e-9), "heading, not identity"
     cmd = recording.commanded[step, 2]
@@ -126,7 +134,7 @@ def test_ros2_metadata_is_humbles_version_5(bags):
         # Humble reads offered_qos_profiles as a YAML string (version 9 made it a list)
         assert isinstance(meta["offered_qos_profiles"], str), meta
         qos = YAML(typ="safe").load(meta["offered_qos_profiles"])
-        latched = meta["name"] in ("/leader/path", "/map", "/markers/obstacles")
+        latched = meta["name"] in ("/leader/path", "/map", "/markers/obstacles", "/tf_static")
         assert qos[0]["durability"] == (1 if latched else 2), meta
         assert "type_description_hash" not in meta
 
@@ -205,3 +213,35 @@ def test_a_bag_read_back_gives_every_metric_exactly(bags, recording):
     for name in ("ep.bag", "ep_mcap"):
         got = read_bag(bags / name).metrics()
         assert got == want, (name, {k: (got[k], want[k]) for k in want if got[k] != want[k]})
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "mcap"])
+def test_a_lidar_gives_laser_scans_and_twist_stamped_reads_back_alike(fmt, tmp_path):
+    """With a lidar every follower's /robot_k/scan is in the bag (its own base_footprint
+    frame, a full turn of rays, nothing hit = +inf); with twist_stamped, cmd_vel is
+    TwistStamped and read_bag gives the same commands as from the Twist bag."""
+    rec = run_episode(parallel_env(robots=4, max_cycles=30, lidar_rays=8), ReynoldsPolicy(),
+                      seed=0).recording
+    name = "ep.bag" if fmt == "ros1" else "ep_mcap"
+    (tmp_path / "plain").mkdir()
+    (tmp_path / "stamped").mkdir()
+    write_bag(rec, tmp_path / "plain" / name, format=fmt, start=START)
+    write_bag(rec, tmp_path / "stamped" / name, format=fmt, start=START, twist_stamped=True)
+    msgs = _messages(tmp_path / "stamped" / name)
+    scans = msgs["/robot_3/scan"]
+    assert len(scans) == 31 and "/robot_0/scan" not in msgs
+    first = scans[0][1]
+    assert first.header.frame_id == "robot_3/base_footprint"
+    assert len(first.ranges) == 8 and first.angle_increment == pytest.approx(math.pi / 4)
+    assert first.range_max == 3.0
+    ranges = np.array([m.ranges for _, m in scans])
+    x = rec.positions[:, 3, 0]
+    hit = np.isfinite(ranges[:, 0])  # ray 0 along +x (a Sphero's frame is the world's)
+    assert hit.any() or (x < 2.0).all()
+    assert (ranges[hit, 0] <= 5.0 - x[hit] + 1e-6).all(), "farther than the east wall"
+    assert (ranges[np.isfinite(ranges)] <= 3.0).all()
+    cmd = msgs["/robot_2/cmd_vel"][5][1]
+    assert cmd.header.frame_id == "robot_2/base_footprint"
+    assert (cmd.twist.linear.x, cmd.twist.linear.y) == tuple(rec.commanded[5, 2])
+    np.testing.assert_array_equal(read_bag(tmp_path / "stamped" / name).commanded,
+                                  read_bag(tmp_path / "plain" / name).commanded)

@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from boids_env.eval.graph.sim import SimCore
 from boids_env.eval.ros.protocol import CommandBoard, finite_commands, finite_leader_command
 from boids_env.eval.ros.sim import SimNode
 
@@ -28,14 +29,15 @@ class _Rospy:
 
 
 def test_a_nan_leader_twist_is_dropped_and_counted():
-    node = SimpleNamespace(name="sim", board=CommandBoard(2), rospy=_Rospy(),
-                           _leader_command=np.zeros(2))
+    core = SimpleNamespace(board=CommandBoard(2), leader_command=np.zeros(2))
+    core.post_leader_command = lambda x, y: SimCore.post_leader_command(core, x, y)
+    node = SimpleNamespace(name="sim", core=core, rospy=_Rospy())
     SimNode._on_leader(node, _twist(0.3, -0.1))
-    assert node._leader_command.tolist() == [0.3, -0.1]
+    assert core.leader_command.tolist() == [0.3, -0.1]
     SimNode._on_leader(node, _twist(math.nan, 0.2))
     SimNode._on_leader(node, _twist(0.1, math.inf))
-    assert node._leader_command.tolist() == [0.3, -0.1], "the last finite command holds"
-    assert node.board.rejected == 2
+    assert core.leader_command.tolist() == [0.3, -0.1], "the last finite command holds"
+    assert core.board.rejected == 2
     assert node.rospy.warnings and "leader" in node.rospy.warnings[0]
 
 
