@@ -15,7 +15,7 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from boids_env import metrics, proxemics
+from boids_env import kernels, metrics, proxemics
 from boids_env.config import EnvConfig
 from boids_env.observations import Crowd, Observer
 from boids_env.vectors import as_velocities, clip_speed
@@ -394,15 +394,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             executed = self._realism.executed(full, world.positions, world.time)
             world.step(full, executed, crowd)
             self._history.append((full, executed, crowd, None))
-        cfg = self.episode_config
-        flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded,
-                                  world.headings)
-        followers = len(world.positions) - 1
-        stacked = np.empty((3, followers), dtype=bool)
-        for row, name in enumerate(metrics.VIOLATIONS):
-            stacked[row] = flags[name]
-        self._counts += stacked
-        terms = self._terms(world, stacked)
+        terms = self._terms(world)
         if self._finish_step is None and leader.finished:
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
@@ -414,12 +406,26 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self.render()
         return result
 
-    def _terms(self, world: World, stacked: npt.NDArray[np.bool_]) -> npt.NDArray[np.float64]:
+    def _terms(self, world: World) -> npt.NDArray[np.float64]:
         """The step's reward terms (9, F) in ``REWARD_INFO_KEYS`` order: the study's three
-        (−weight · flag · dt, as ``metrics.reward_terms``), then the opt-in ones, which stay
-        zero rows unless their weight is set (nothing is computed for them then)."""
-        terms = np.zeros((len(REWARD_INFO_KEYS), stacked.shape[1]))
-        np.multiply(self._reward_scale, stacked, out=terms[:3])
+        (−weight · flag · dt, as ``metrics.reward_terms``; their flags counted for the
+        episode's V_*), then the opt-in ones, which stay zero rows unless their weight is set
+        (nothing is computed for them then)."""
+        terms = np.zeros((len(REWARD_INFO_KEYS), len(world.positions) - 1))
+        mc = self.episode_config.metrics
+        compiled = kernels.compiled()
+        if compiled is not None and mc.alignment_source == "command":
+            # the same bits in one loop; the angles from numpy's arctan2 (boids_env.kernels)
+            cmd = world.commanded
+            compiled.violations(world.positions, cmd, np.arctan2(cmd[:, 1], cmd[:, 0]),
+                                mc.separation_threshold, mc.cohesion_threshold,
+                                mc.alignment_threshold_deg, mc.wrap_alignment,
+                                self._reward_scale[:, 0], self._counts, terms)
+        else:
+            flags = metrics.flags_for(mc, world.positions, world.commanded, world.headings)
+            stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])
+            self._counts += stacked
+            np.multiply(self._reward_scale, stacked, out=terms[:3])
         if self._safety_scale.any():
             terms[3:6] = self._safety_terms(world.positions)
         if self._gap_scale:
