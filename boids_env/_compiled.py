@@ -134,3 +134,24 @@ def clip_speed(v, limit):  # pragma: no cover - compiled
         out[i, 0] = v[i, 0] * scale
         out[i, 1] = v[i, 1] * scale
     return 1, out
+
+
+@njit(cache=True)
+def nearest_other(positions):  # pragma: no cover - compiled
+    """Every follower's distance (F,) to the nearest other robot (the leader included), as
+    ``cKDTree(positions).query(positions[1:], k=2)[0][:, 1]`` gives it (a robot exactly on
+    another: 0)."""
+    n = positions.shape[0]
+    out = np.empty(n - 1)
+    for i in range(1, n):
+        best = np.inf
+        for j in range(n):
+            if j == i:
+                continue
+            dx = positions[i, 0] - positions[j, 0]
+            dy = positions[i, 1] - positions[j, 1]
+            d = dx * dx + dy * dy
+            if d < best:
+                best = d
+        out[i - 1] = math.sqrt(best)
+    return out

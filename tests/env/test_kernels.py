@@ -113,3 +113,24 @@ def test_clip_speed_kernel_matches_on_ordinary_zero_and_huge_rows():
     np.testing.assert_array_equal(clip_speed(huge, 0.5),
                                   [[0.5, 0.0], [0.5 / np.sqrt(2), -0.5 / np.sqrt(2)],
                                    [0.3, 0.4]])
+
+
+def test_safety_flags_kernel_matches_the_kd_tree():
+    from boids_env.metrics import safety_flags
+
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        n = int(rng.integers(2, 40))
+        positions = rng.normal(0, [0.05, 0.5, 3.0][trial % 3], (n, 2))
+        positions[n // 2] = positions[0]  # a robot exactly on the leader: distance 0
+        near = rng.random(n - 1) < 0.5
+        got = safety_flags(positions, 0.036, 0.15, near)
+        with kernels.reference():
+            want = safety_flags(positions, 0.036, 0.15, near)
+        for name in want:
+            _same(got[name], want[name], f"trial {trial} {name}")
+    # hand-checked: followers 0.1 m and 0.3 m from the leader, 0.2 m from each other
+    flags = safety_flags(np.array([[0.0, 0.0], [0.1, 0.0], [0.3, 0.0]]), 0.036, 0.15,
+                         np.zeros(2, dtype=bool))
+    assert flags["proximity"].tolist() == [True, False]
+    assert flags["contact"].tolist() == [False, False]
