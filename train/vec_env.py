@@ -406,11 +406,17 @@ def default_processes(copies: int, cores: int | None = None) -> int:
 
 
 def default_threads(processes: int, cores: int | None = None) -> int:
-    """Torch threads for the learner beside ``processes`` env workers: every core on 1 or 2
-    cores (the copies step in the same process, between the learner's calls), else the cores
-    the workers leave (see :func:`default_processes` for the measurements)."""
+    """Torch threads for the learner beside ``processes`` env workers: one on 1 or 2 cores,
+    else the cores the workers leave (see :func:`default_processes` for those measurements).
+
+    On 2 cores a second intra-op thread buys the learner little (small networks, small
+    batches) and costs the env a lot: torch's worker threads spin-wait between operations,
+    so on a machine whose other core is busy they take turns with the env for one core.
+    Measured on a loaded 2-core machine with ``boids train``'s defaults (follower-steps/s,
+    one process): 1 thread 5,920 against 2 threads 906; with two worker processes 11,534
+    against 499 (docs/explanation/speed.md)."""
     cores = cores or available_cores()
-    return cores if cores <= 2 else max(1, cores - processes)
+    return 1 if cores <= 2 else max(1, cores - processes)
 
 
 def _split(specs: Sequence[CopySpec], parts: int) -> list[list[CopySpec]]:
