@@ -134,3 +134,37 @@ def test_safety_flags_kernel_matches_the_kd_tree():
                          np.zeros(2, dtype=bool))
     assert flags["proximity"].tolist() == [True, False]
     assert flags["contact"].tolist() == [False, False]
+
+
+DIGEST = """
+import hashlib
+import numpy as np
+from boids_env import kernels, parallel_env
+from boids_env.eval.episode import run_episode
+from boids_env.policies import ReynoldsPolicy
+env = parallel_env(robots=19, reward="safe", max_cycles=100)
+rec = run_episode(env, ReynoldsPolicy(), seed=4, record=True).recording
+print(kernels.compiled() is not None,
+      hashlib.sha256(rec.positions.tobytes() + rec.commanded.tobytes()).hexdigest())
+"""
+
+
+@pytest.mark.slow
+def test_kernels_give_the_same_bits_compiled_for_a_baseline_cpu(tmp_path):
+    """numba compiles for the host's instruction set; compiled for a baseline x86-64 CPU
+    (``NUMBA_CPU_NAME=generic``: no AVX, no FMA) the episode is the same bits, and the
+    same as the numpy reference's (each run a fresh process)."""
+    import os
+    import subprocess
+    import sys
+
+    runs = {}
+    for name, extra in (("host", {}), ("generic", {"NUMBA_CPU_NAME": "generic"}),
+                        ("numpy", {"BOIDS_KERNELS": "0"})):
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / name), **extra}
+        done = subprocess.run([sys.executable, "-c", DIGEST], env=env, capture_output=True,
+                              text=True, timeout=600)
+        assert done.returncode == 0, done.stderr[-3000:]
+        runs[name] = done.stdout.split()
+    assert runs["host"][0] == runs["generic"][0] == "True" and runs["numpy"][0] == "False"
+    assert runs["host"][1] == runs["generic"][1] == runs["numpy"][1], runs
