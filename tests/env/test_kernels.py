@@ -14,11 +14,47 @@ from boids_env.policies import ReynoldsPolicy
 from boids_env.vectors import clip_speed
 
 
-def test_kernels_run_by_default():
-    assert kernels.compiled() is not None, "numba is a core dependency: the kernels must load"
+@pytest.fixture(autouse=True)
+def _kernels_loaded():
+    """The kernels at once (a process loads them on its own only after LOAD_AFTER calls)."""
+    assert kernels.load() is not None, "numba is a core dependency: the kernels must load"
+
+
+def test_reference_turns_the_kernels_off_inside_its_block():
+    assert kernels.compiled() is not None
     with kernels.reference():
         assert kernels.compiled() is None
     assert kernels.compiled() is not None
+
+
+LAZY = """
+import sys
+import numpy as np
+from boids_env import kernels, parallel_env
+kernels.LOAD_AFTER = 40
+env = parallel_env(robots=7)
+env.reset_arrays(seed=0)
+for _ in range(5):
+    env.step_arrays(np.zeros((6, 2)))
+print("numba" in sys.modules, kernels.compiled() is None)
+for _ in range(15):
+    env.step_arrays(np.zeros((6, 2)))
+print("numba" in sys.modules, kernels.compiled() is None)
+"""
+
+
+def test_a_process_loads_the_kernels_only_after_enough_steps():
+    """A short run (one ``boids run`` episode) never pays numba's import; a long one loads
+    the kernels once it has stepped a while."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "BOIDS_KERNELS"}
+    done = subprocess.run([sys.executable, "-c", LAZY], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.split() == ["False", "True", "True", "False"], done.stdout
 
 
 def _same(a, b, what):
@@ -159,7 +195,8 @@ def test_kernels_give_the_same_bits_compiled_for_a_baseline_cpu(tmp_path):
     import sys
 
     runs = {}
-    for name, extra in (("host", {}), ("generic", {"NUMBA_CPU_NAME": "generic"}),
+    for name, extra in (("host", {"BOIDS_KERNELS": "1"}),
+                        ("generic", {"BOIDS_KERNELS": "1", "NUMBA_CPU_NAME": "generic"}),
                         ("numpy", {"BOIDS_KERNELS": "0"})):
         env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / name), **extra}
         done = subprocess.run([sys.executable, "-c", DIGEST], env=env, capture_output=True,
