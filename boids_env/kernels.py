@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import warnings
 from collections.abc import Iterator
 from types import ModuleType
 
@@ -61,7 +62,13 @@ def load() -> ModuleType | None:
         if os.environ.get("BOIDS_KERNELS", "") != "0":
             try:
                 from boids_env import _compiled
-            except ImportError:  # numba missing or broken on this platform: numpy runs
+            except ImportError:  # numba missing, or too old for this numpy: numpy runs
+                _compiled = None
+            except (RuntimeError, OSError) as err:  # e.g. no writable cache folder
+                warnings.warn(f"the compiled kernels could not load ({err}); the numpy "
+                              f"reference runs instead (same results, slower; "
+                              f"NUMBA_CACHE_DIR names a writable cache folder)",
+                              RuntimeWarning, stacklevel=2)
                 _compiled = None
             _module = _compiled
     return _module if not _forced_off else None

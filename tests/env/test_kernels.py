@@ -205,3 +205,29 @@ def test_kernels_give_the_same_bits_compiled_for_a_baseline_cpu(tmp_path):
         runs[name] = done.stdout.split()
     assert runs["host"][0] == runs["generic"][0] == "True" and runs["numpy"][0] == "False"
     assert runs["host"][1] == runs["generic"][1] == runs["numpy"][1], runs
+
+
+def test_kernels_that_cannot_load_leave_the_numpy_reference_with_a_warning(monkeypatch):
+    """numba raises RuntimeError when it finds no writable cache folder: the env still
+    runs, on numpy, and says why."""
+    import sys
+
+    import boids_env
+
+    class Refuse:
+        def find_spec(self, name, path=None, target=None):
+            if name == "boids_env._compiled":
+                raise RuntimeError("cannot cache function 'nearest': no locator available")
+            return None
+
+    monkeypatch.delitem(sys.modules, "boids_env._compiled")
+    monkeypatch.delattr(boids_env, "_compiled")
+    monkeypatch.setattr(sys, "meta_path", [Refuse(), *sys.meta_path])
+    monkeypatch.setattr(kernels, "_loaded", False)
+    monkeypatch.setattr(kernels, "_module", None)
+    with pytest.warns(RuntimeWarning, match="numpy reference runs instead"):
+        assert kernels.load() is None
+    assert kernels.compiled() is None
+    env = parallel_env(robots=5, max_cycles=3)
+    env.reset_arrays(seed=0)
+    assert env.step_arrays(np.zeros((4, 2))).observations.shape == (4, 6 + 5 * 18)
