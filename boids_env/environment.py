@@ -266,6 +266,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                                     wc.robot_radius, wc.max_speed, rng, stale_seed)
         self._reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
         self._safety_scale = -np.array(episode.metrics.safety_weights)[:, None] * wc.dt
+        self._safety_on = bool(self._safety_scale.any())
+        self._violation_scale = np.ascontiguousarray(self._reward_scale[:, 0])  # the kernel's
         self._gap_scale = -episode.metrics.reward_gap * wc.dt
         self._intrusion_scale = -episode.metrics.reward_intrusion * wc.dt
         self._parked_scale = -episode.metrics.reward_parked * wc.dt
@@ -420,13 +422,13 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             compiled.violations(world.positions, cmd, np.arctan2(cmd[:, 1], cmd[:, 0]),
                                 mc.separation_threshold, mc.cohesion_threshold,
                                 mc.alignment_threshold_deg, mc.wrap_alignment,
-                                self._reward_scale[:, 0], self._counts, terms)
+                                self._violation_scale, self._counts, terms)
         else:
             flags = metrics.flags_for(mc, world.positions, world.commanded, world.headings)
             stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])
             self._counts += stacked
             np.multiply(self._reward_scale, stacked, out=terms[:3])
-        if self._safety_scale.any():
+        if self._safety_on:
             terms[3:6] = self._safety_terms(world.positions)
         if self._gap_scale:
             terms[6:7] = self._gap_term(world.positions)
