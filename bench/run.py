@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from boids_env import EnvConfig, ScenarioConfig, parallel_env
+from boids_env import EnvConfig, ScenarioConfig, kernels, parallel_env
 from boids_env.config import layout_extent
 from boids_env.files import write_text
 from boids_env.policies import ReynoldsPolicy
@@ -230,12 +230,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", default="runs/bench/results.json",
                         help="JSON output (runs/bench/results.json)")
     args = parser.parse_args(argv)
+    compiled = kernels.load()  # at once: the rows measure the steady state, not the start
     repeats = 3 if args.quick else 5
     sizes = [13, 19] if args.quick else [7, 13, 19, 100, 1000]
     rows: list[dict[str, Any]] = []
     out: dict[str, Any] = {"machine": {"python": platform.python_version(),
                                        "cpu": platform.processor() or platform.machine(),
-                                       "cores": os.cpu_count()}}
+                                       "cores": os.cpu_count(),
+                                       "kernels": compiled is not None}}
 
     def record(kind: str, n: int, agents: int, rate: dict[str, float]) -> None:
         rows.append({"kind": kind, "robots": n, "env_steps_per_s": rate,

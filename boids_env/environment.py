@@ -15,7 +15,7 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from boids_env import metrics, proxemics
+from boids_env import kernels, metrics, proxemics
 from boids_env.config import EnvConfig
 from boids_env.observations import Crowd, Observer
 from boids_env.vectors import as_velocities, clip_speed
@@ -260,6 +260,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         headings = (np.full(sc.robots, leader.initial_heading)
                     if wc.drive == "unicycle" else None)
         observer = Observer(episode)
+        reward_scale = metrics.reward_scale(episode.metrics, wc.dt)
+        safety_scale = -np.array(episode.metrics.safety_weights)[:, None] * wc.dt
         state: dict[str, Any] = {
             "_initial_positions": initial, "_leader": leader, "_people": people,
             "_initial_headings": headings, "_scene": scene,
@@ -270,8 +272,10 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             "_history": [],
             "_counts": np.zeros((3, len(self.possible_agents)), dtype=np.int64),
             "_observer": observer, "_realism": None,
-            "_reward_scale": metrics.reward_scale(episode.metrics, wc.dt),
-            "_safety_scale": -np.array(episode.metrics.safety_weights)[:, None] * wc.dt,
+            "_reward_scale": reward_scale,
+            "_safety_scale": safety_scale,
+            "_safety_on": bool(safety_scale.any()),
+            "_violation_scale": np.ascontiguousarray(reward_scale[:, 0]),  # the kernel's
             "_gap_scale": -episode.metrics.reward_gap * wc.dt,
             "_intrusion_scale": -episode.metrics.reward_intrusion * wc.dt,
             "_parked_scale": -episode.metrics.reward_parked * wc.dt,
@@ -399,15 +403,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             executed = self._realism.executed(full, world.positions, world.time)
             world.step(full, executed, crowd)
             self._history.append((full, executed, crowd, None))
-        cfg = self.episode_config
-        flags = metrics.flags_for(cfg.metrics, world.positions, world.commanded,
-                                  world.headings)
-        followers = len(world.positions) - 1
-        stacked = np.empty((3, followers), dtype=bool)
-        for row, name in enumerate(metrics.VIOLATIONS):
-            stacked[row] = flags[name]
-        self._counts += stacked
-        terms = self._terms(world, stacked)
+        terms = self._terms(world)
         if self._finish_step is None and leader.finished:
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
@@ -419,13 +415,27 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self.render()
         return result
 
-    def _terms(self, world: World, stacked: npt.NDArray[np.bool_]) -> npt.NDArray[np.float64]:
+    def _terms(self, world: World) -> npt.NDArray[np.float64]:
         """The step's reward terms (9, F) in ``REWARD_INFO_KEYS`` order: the study's three
-        (−weight · flag · dt, as ``metrics.reward_terms``), then the opt-in ones, which stay
-        zero rows unless their weight is set (nothing is computed for them then)."""
-        terms = np.zeros((len(REWARD_INFO_KEYS), stacked.shape[1]))
-        np.multiply(self._reward_scale, stacked, out=terms[:3])
-        if self._safety_scale.any():
+        (−weight · flag · dt, as ``metrics.reward_terms``; their flags counted for the
+        episode's V_*), then the opt-in ones, which stay zero rows unless their weight is set
+        (nothing is computed for them then)."""
+        terms = np.zeros((len(REWARD_INFO_KEYS), len(world.positions) - 1))
+        mc = self.episode_config.metrics
+        compiled = kernels.compiled()
+        if compiled is not None and mc.alignment_source == "command":
+            # the same bits in one loop; the angles from numpy's arctan2 (boids_env.kernels)
+            cmd = world.commanded
+            compiled.violations(world.positions, cmd, np.arctan2(cmd[:, 1], cmd[:, 0]),
+                                mc.separation_threshold, mc.cohesion_threshold,
+                                mc.alignment_threshold_deg, mc.wrap_alignment,
+                                self._violation_scale, self._counts, terms)
+        else:
+            flags = metrics.flags_for(mc, world.positions, world.commanded, world.headings)
+            stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])
+            self._counts += stacked
+            np.multiply(self._reward_scale, stacked, out=terms[:3])
+        if self._safety_on:
             terms[3:6] = self._safety_terms(world.positions)
         if self._gap_scale:
             terms[6:7] = self._gap_term(world.positions)

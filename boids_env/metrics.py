@@ -25,6 +25,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
 
+from boids_env import kernels
+
 if TYPE_CHECKING:
     from boids_env.config import MetricsConfig
     from boids_env.world.scene import Scene
@@ -43,6 +45,9 @@ SAFETY_KEYS = ("touching_fraction", "mean_contact_pairs", "contacts_follower",
 SAFETY_FLAGS = ("proximity", "contact", "wall")
 """Per-follower, per-step safety flags (:func:`safety_flags`), in reward order."""
 V_KEYS = {"separation": "V_sep", "cohesion": "V_coh", "alignment": "V_align"}
+KD_TREE_MIN_ROBOTS = 96
+"""From this group size on, the safety flags find each follower's nearest robot with a
+KD-tree; below it, all pairs in a compiled loop (:mod:`boids_env.kernels`)."""
 COUNT_KEYS = {"separation": "count_sep", "cohesion": "count_coh", "alignment": "count_align"}
 
 
@@ -314,7 +319,10 @@ def safety_flags(positions: FloatArray, radius: float, safety_distance: float,
     centre near static geometry, as the caller measured it); each (N-1,)."""
     pos = np.asarray(positions, dtype=float)
     n = len(pos)
-    if n > 1:
+    compiled = kernels.compiled()
+    if 1 < n < KD_TREE_MIN_ROBOTS and compiled is not None:  # the same bits in one loop
+        nearest = compiled.nearest_other(np.ascontiguousarray(pos))
+    elif n > 1:
         nearest = cKDTree(pos).query(pos[1:], k=2)[0][:, 1]
     else:  # pragma: no cover - an env always has a follower
         nearest = np.zeros(0)

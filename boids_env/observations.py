@@ -42,6 +42,7 @@ import numpy.typing as npt
 from gymnasium import spaces
 from scipy.spatial import cKDTree
 
+from boids_env import kernels
 from boids_env.vectors import times_matrix
 from boids_env.world import geometry as geo
 from boids_env.world.scene import Scene
@@ -277,6 +278,10 @@ def nearest_neighbours(positions: FloatArray, horizon: float, k: int
     followers = n - 1
     if k == 0 or followers == 0:
         return np.full((followers, k), -1, dtype=np.intp), np.full((followers, k), np.inf)
+    compiled = kernels.compiled()
+    if n < KD_TREE_MIN_ROBOTS and compiled is not None:
+        return compiled.nearest(np.ascontiguousarray(positions, dtype=np.float64),
+                                float(horizon), int(k))
     if n < KD_TREE_MIN_ROBOTS:
         # x and y apart: (F, N) differences broadcast row by row (a trailing axis of 2 makes
         # numpy's inner loops two elements long, 4x slower at 19 robots); the squares are
@@ -407,6 +412,34 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         velocities = times_matrix(velocities, frame)
         if headings is not None:
             headings = times_matrix(headings, frame)
+    compiled = kernels.compiled()
+    if compiled is not None:  # the same bits in one loop (boids_env.kernels)
+        obs = np.empty((followers, layout.size), dtype=np.float32)
+        index = (nearest_neighbours(positions, horizon, layout.neighbours)[0]
+                 if layout.neighbours else None)
+        compiled.fill_observations(
+            np.ascontiguousarray(positions, dtype=np.float64),
+            np.ascontiguousarray(velocities, dtype=np.float64),
+            np.empty((followers, 0), dtype=np.intp) if index is None else index,
+            float(velocity_bound), float(reach), obs, layout.neighbours_start)
+    else:
+        obs, index = _study_blocks(positions, velocities, layout, horizon, velocity_bound,
+                                   reach)
+    if layout.headings:
+        assert headings is not None
+        _heading_blocks(obs, layout, headings, index)
+    _sensed_blocks(obs, layout, world_positions, velocity_bound, frame, sensors, crowd)
+    return obs
+
+
+def _study_blocks(positions: FloatArray, velocities: FloatArray, layout: ObservationLayout,
+                  horizon: float, velocity_bound: float, reach: float
+                  ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.intp] | None]:
+    """The numpy reference of the study's blocks (own velocity, leader position and velocity,
+    neighbour slots) of every follower's observation, and the neighbour index (None without
+    slots); the remaining blocks are left for the caller to fill."""
+    n = len(positions)
+    followers = n - 1
     # One feature table, a row per robot plus an all-zero row that empty slots point at:
     # position, velocity (clipped), valid flag. Slots are one gather from it.
     table = np.zeros((n + 1, SLOT_SIZE))
@@ -432,11 +465,7 @@ def build_observations(positions: FloatArray, velocities: FloatArray, layout: Ob
         gathered[..., 1] -= positions[1:, 1:2] * flag
         end = layout.neighbours_start + SLOT_SIZE * layout.neighbours
         obs[:, layout.neighbours_start:end] = gathered.reshape(followers, -1)
-    if layout.headings:
-        assert headings is not None
-        _heading_blocks(obs, layout, headings, index)
-    _sensed_blocks(obs, layout, world_positions, velocity_bound, frame, sensors, crowd)
-    return obs
+    return obs, index
 
 
 def _heading_blocks(obs: npt.NDArray[np.float32], layout: ObservationLayout,

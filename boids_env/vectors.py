@@ -1,5 +1,6 @@
 """Velocity commands: strict parsing, an overflow-safe speed limit, and 2-D linear maps that
-round the same on every CPU (pure numpy)."""
+round the same on every CPU (numpy; the speed limit also as a compiled kernel of the same
+bits, :mod:`boids_env.kernels`)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env import kernels
+
 FloatArray = npt.NDArray[np.float64]
 
 
@@ -18,6 +21,11 @@ def clip_speed(v: FloatArray, limit: float) -> FloatArray:
     unchanged). Huge finite components, whose plain norm overflows to inf, keep their
     direction too: ``(1e155, 0)`` becomes ``(limit, 0)``, not ``(0, 0)``."""
     v = np.asarray(v, dtype=np.float64)
+    compiled = kernels.compiled()
+    if compiled is not None and v.ndim == 2 and v.shape[1] == 2 and v.flags.c_contiguous:
+        status, out = compiled.clip_speed(v, float(limit))  # the same bits in one loop
+        if status != 2:  # 2: a speed overflows, handled below
+            return out
     speed = np.sqrt(np.einsum("...d,...d->...", v, v))  # no overflow warning for huge rows
     if not (speed > limit).any():
         return v

@@ -63,3 +63,26 @@ def test_digests_match_the_pinned_golden_trajectories():
     result = run_episode(parallel_env(**case["fields"]), ReynoldsPolicy(**case["policy"]),
                          seed=case["seed"])
     assert digest(result.recording.positions, result.recording.commanded) == case["sha"]
+
+
+@pytest.mark.slow
+def test_compare_runs_old_and_new_in_turn_and_takes_ratios_round_by_round():
+    import sys
+
+    from boids_env.bench.compare import compare
+
+    out = compare(sys.executable, robots=3, steps=2, repeats=1, rounds=2)
+    assert out["setting"]["rounds"] == 2
+    for name in ("old", "new"):
+        for key in ("physics wall", "dict cpu", "arrays wall", "dict/physics wall",
+                    "arrays/physics cpu"):
+            assert out[name][key] > 0, (name, key, out[name])
+    assert set(out["new_over_old"]) == {"physics wall", "physics cpu", "dict wall", "dict cpu",
+                                        "arrays wall", "arrays cpu"}
+
+
+def test_compare_refuses_bad_counts():
+    from boids_env.bench.compare import main
+
+    with pytest.raises(SystemExit):
+        main(["python", "--rounds", "0"])

@@ -52,7 +52,8 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--processes", type=int, default=None,
                    help="env worker processes (0: half the cores from 3 cores on, else 1)")
     p.add_argument("--torch-threads", type=int, default=None, dest="torch_threads",
-                   help="learner threads (0: the cores the env workers leave)")
+                   help="learner threads (0: one on 1-2 cores, else the cores the env "
+                        "workers leave)")
     p.add_argument("--device", choices=("cpu", "cuda", "auto"), default=None,
                    help="where the policy updates run (cpu)")
     p.add_argument("--group-sizes", type=int, nargs="+", default=None, metavar="N",

@@ -93,8 +93,8 @@ class TrainConfig:
     """Worker processes the env copies are split over (1: stepped in the training process;
     0: half the cores from 3 cores on, else 1; see ``vec_env.default_processes``)."""
     torch_threads: int = 0
-    """Torch threads of the learner; 0: the cores the env workers leave (all of them on 1
-    or 2 cores; see ``vec_env.default_threads``)."""
+    """Torch threads of the learner; 0: the cores the env workers leave (one on 1 or 2
+    cores, where a second thread spins against the env; see ``vec_env.default_threads``)."""
     device: str = "cpu"
     """Where the policy and its updates run: ``cpu`` (default), ``cuda``, or ``auto`` (cuda
     when a GPU is present). The env always runs on the CPU."""

@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
+from boids_env.batch import EnvBatch
 from boids_env.environment import BoidsEnv
 from boids_env.eval.pool import available_cores
 
@@ -72,7 +73,8 @@ class _Shard:
     def __init__(self, specs: Sequence[CopySpec]) -> None:
         self.specs = list(specs)
         self.envs = [spec.make() for spec in self.specs]
-        self.sizes = [len(env.possible_agents) for env in self.envs]
+        self.batch = EnvBatch(self.envs)
+        self.sizes = self.batch.sizes
         self.rngs = [np.random.default_rng(0) for _ in self.envs]
         self.obs_size = self.envs[0].observation_space(self.envs[0].possible_agents[0]).shape[0]
 
@@ -90,31 +92,26 @@ class _Shard:
     def step(self, actions: npt.NDArray[np.float32]) -> tuple[
             npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.bool_],
             list[dict[str, Any]]]:
-        """Steps every copy through the env's array API (no per-agent dicts) and resets the
-        copies whose episode ended."""
-        obs = np.empty((len(actions), self.obs_size), dtype=np.float32)
-        rewards = np.empty(len(actions), dtype=np.float32)
+        """Steps every copy in one call (:class:`boids_env.batch.EnvBatch`, no per-agent
+        dicts) and resets the copies whose episode ended."""
+        result = self.batch.step_arrays(actions)
+        obs = result.observations
+        rewards = result.rewards.astype(np.float32)
         dones = np.zeros(len(actions), dtype=bool)
         infos: list[dict[str, Any]] = [{} for _ in range(len(actions))]
-        start = 0
         for i, env in enumerate(self.envs):
-            stop = start + self.sizes[i]
-            result = env.step_arrays(actions[start:stop])
-            rewards[start:stop] = result.rewards
-            if result.truncated:
+            start, stop = self.batch.bounds[i], self.batch.bounds[i + 1]
+            if result.truncated[i]:
                 m = env.episode_metrics()
                 infos[start][EPISODE_INFO] = {
                     "V_sep": m["V_sep"], "V_coh": m["V_coh"], "V_align": m["V_align"],
                     "robots": self.specs[i].robots,
                     "leader_speed": env.episode_config.scenario.leader_speed}
                 for k in range(start, stop):
-                    infos[k]["terminal_observation"] = result.observations[k - start]
+                    infos[k]["terminal_observation"] = obs[k].copy()
                     infos[k]["TimeLimit.truncated"] = True
                 dones[start:stop] = True
                 obs[start:stop] = self._reset_copy(i)
-            else:
-                obs[start:stop] = result.observations
-            start = stop
         return obs, rewards, dones, infos
 
     def call(self, copy: int, method: str, *args: Any, **kwargs: Any) -> Any:
@@ -406,11 +403,17 @@ def default_processes(copies: int, cores: int | None = None) -> int:
 
 
 def default_threads(processes: int, cores: int | None = None) -> int:
-    """Torch threads for the learner beside ``processes`` env workers: every core on 1 or 2
-    cores (the copies step in the same process, between the learner's calls), else the cores
-    the workers leave (see :func:`default_processes` for the measurements)."""
+    """Torch threads for the learner beside ``processes`` env workers: one on 1 or 2 cores,
+    else the cores the workers leave (see :func:`default_processes` for those measurements).
+
+    On 2 cores a second intra-op thread buys the learner little (small networks, small
+    batches) and costs the env a lot: torch's worker threads spin-wait between operations,
+    so on a machine whose other core is busy they take turns with the env for one core.
+    Measured on a loaded 2-core machine with ``boids train``'s defaults (follower-steps/s,
+    one process): 1 thread 5,920 against 2 threads 906; with two worker processes 11,534
+    against 499 (docs/explanation/speed.md)."""
     cores = cores or available_cores()
-    return cores if cores <= 2 else max(1, cores - processes)
+    return 1 if cores <= 2 else max(1, cores - processes)
 
 
 def _split(specs: Sequence[CopySpec], parts: int) -> list[list[CopySpec]]:

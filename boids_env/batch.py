@@ -1,0 +1,120 @@
+"""Many worlds per process: K copies of the env stepped in one call through arrays.
+
+Each copy keeps its own pymunk space, random stream and episode; the batch only moves their
+arrays in one block, one row per follower, the copies' followers one after another (copies
+may have different group sizes). Each copy's results are bit-identical to stepping it alone
+with :meth:`BoidsEnv.step_arrays` (``tests/env/test_batch.py``). The actions of the whole
+batch are checked once, in one call, instead of once per copy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from boids_env.environment import BoidsEnv
+
+
+@dataclass(frozen=True)
+class BatchStep:
+    """One step of every copy: rows of all copies' followers, in copy order."""
+
+    observations: npt.NDArray[np.float32]
+    """(sum F, D) next observations."""
+    rewards: npt.NDArray[np.float64]
+    """(sum F,) rewards."""
+    terms: npt.NDArray[np.float64]
+    """(9, sum F) reward terms in ``REWARD_INFO_KEYS`` order."""
+    truncated: npt.NDArray[np.bool_]
+    """(K,) whether each copy's episode ended with this step."""
+
+
+class EnvBatch:
+    """K env copies stepped together.
+
+    Args:
+        envs: the copies (each its own :class:`BoidsEnv`; one object may not appear twice).
+            Their observations must have one size.
+    """
+
+    def __init__(self, envs: Sequence[BoidsEnv]) -> None:
+        envs = list(envs)
+        if not envs or not all(isinstance(e, BoidsEnv) for e in envs):
+            raise TypeError(f"envs must be a non-empty sequence of BoidsEnv, got {envs!r}")
+        if len({id(e) for e in envs}) != len(envs):
+            raise ValueError("envs must be distinct objects: a copy listed twice would step "
+                             "twice per call")
+        sizes = {e.observation_space(e.possible_agents[0]).shape[0] for e in envs}
+        if len(sizes) != 1:
+            raise ValueError(f"the copies' observations must have one size, got "
+                             f"{sorted(sizes)}")
+        self.envs = envs
+        self.sizes = [len(e.possible_agents) for e in envs]
+        self.bounds = np.cumsum([0, *self.sizes]).tolist()
+        self.obs_size = sizes.pop()
+
+    def __len__(self) -> int:
+        return len(self.envs)
+
+    @property
+    def rows(self) -> int:
+        """Followers of all copies: the rows of every array."""
+        return self.bounds[-1]
+
+    def reset_copy(self, copy: int, seed: int | None = None,
+                   options: Mapping[str, Any] | None = None) -> npt.NDArray[np.float32]:
+        """Resets copy ``copy`` (as its ``reset_arrays``); its observations (F, D)."""
+        return self.envs[copy].reset_arrays(seed, dict(options) if options else None)
+
+    def reset_arrays(self, seeds: Sequence[int | None],
+                     options: Sequence[Mapping[str, Any] | None] | None = None
+                     ) -> npt.NDArray[np.float32]:
+        """Resets every copy with its seed and options; observations (sum F, D)."""
+        if len(seeds) != len(self.envs) or (options is not None
+                                             and len(options) != len(self.envs)):
+            raise ValueError(f"give one seed (and one options entry) per copy: "
+                             f"{len(self.envs)} copies, got {len(seeds)} seeds")
+        opts = options if options is not None else [None] * len(self.envs)
+        return np.concatenate([self.reset_copy(i, s, o)
+                               for i, (s, o) in enumerate(zip(seeds, opts, strict=True))])
+
+    def step_arrays(self, actions: npt.ArrayLike) -> BatchStep:
+        """Steps every copy with its rows of ``actions`` (sum F, 2), in copy order.
+
+        The actions are checked as :meth:`BoidsEnv.step_arrays` checks them (a clear
+        ``ValueError`` for a wrong shape, dtype or a NaN/inf, naming the copy and follower),
+        before any copy steps; a copy whose episode has ended is refused the same way."""
+        arr = np.asarray(actions)
+        shape = (self.rows, 2)
+        if arr.dtype.kind not in "iuf" or arr.shape != shape:
+            raise ValueError(f"actions must be a real array of shape {shape} (vx, vy per "
+                             f"follower of every copy, m/s), got dtype {arr.dtype} and "
+                             f"shape {arr.shape}")
+        arr = np.array(arr, dtype=np.float64)  # a copy: the caller's array stays its own
+        if not np.isfinite(arr).all():
+            row = int(np.flatnonzero(~np.isfinite(arr).all(axis=1))[0])
+            copy = int(np.searchsorted(self.bounds, row, side="right")) - 1
+            raise ValueError(f"actions must be finite; NaN or inf in copy {copy}, "
+                             f"follower row {row - self.bounds[copy]}")
+        for i, env in enumerate(self.envs):
+            if env._world is None or not env.agents:
+                raise RuntimeError(f"copy {i} has no live episode (reset it before stepping)")
+        observations = np.empty((self.rows, self.obs_size), dtype=np.float32)
+        rewards = np.empty(self.rows)
+        terms: npt.NDArray[np.float64] | None = None
+        truncated = np.zeros(len(self.envs), dtype=bool)
+        for i, env in enumerate(self.envs):
+            start, stop = self.bounds[i], self.bounds[i + 1]
+            result = env._advance(arr[start:stop])
+            if terms is None:
+                terms = np.empty((len(result.terms), self.rows))
+            observations[start:stop] = result.observations
+            rewards[start:stop] = result.rewards
+            terms[:, start:stop] = result.terms
+            truncated[i] = result.truncated
+        assert terms is not None
+        return BatchStep(observations, rewards, terms, truncated)

@@ -1,0 +1,235 @@
+"""The compiled kernels (boids_env.kernels) give the numpy reference's bits: whole episodes
+stepped side by side, one env on the kernels and one on the reference, every observation,
+reward, reward term and count compared bit for bit; and the kernels on hand-made inputs that
+stress their edge cases (exact ties, zero distances, a neighbour exactly at the horizon,
+overflowing commands)."""
+
+import numpy as np
+import pytest
+
+from boids_env import kernels, parallel_env
+from boids_env.environment import REWARD_INFO_KEYS
+from boids_env.observations import nearest_neighbours
+from boids_env.policies import ReynoldsPolicy
+from boids_env.vectors import clip_speed
+
+
+@pytest.fixture(autouse=True)
+def _kernels_loaded():
+    """The kernels at once (a process loads them on its own only after LOAD_AFTER calls)."""
+    assert kernels.load() is not None, "numba is a core dependency: the kernels must load"
+
+
+def test_reference_turns_the_kernels_off_inside_its_block():
+    assert kernels.compiled() is not None
+    with kernels.reference():
+        assert kernels.compiled() is None
+    assert kernels.compiled() is not None
+
+
+LAZY = """
+import sys
+import numpy as np
+from boids_env import kernels, parallel_env
+kernels.LOAD_AFTER = 40
+env = parallel_env(robots=7)
+env.reset_arrays(seed=0)
+for _ in range(5):
+    env.step_arrays(np.zeros((6, 2)))
+print("numba" in sys.modules, kernels.compiled() is None)
+for _ in range(15):
+    env.step_arrays(np.zeros((6, 2)))
+print("numba" in sys.modules, kernels.compiled() is None)
+"""
+
+
+def test_a_process_loads_the_kernels_only_after_enough_steps():
+    """A short run (one ``boids run`` episode) never pays numba's import; a long one loads
+    the kernels once it has stepped a while."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "BOIDS_KERNELS"}
+    done = subprocess.run([sys.executable, "-c", LAZY], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.split() == ["False", "True", "True", "False"], done.stdout
+
+
+def _same(a, b, what):
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.dtype == b.dtype and a.shape == b.shape, (what, a.dtype, b.dtype, a.shape, b.shape)
+    assert a.tobytes() == b.tobytes(), f"{what}: compiled {a!r} != reference {b!r}"
+
+
+EPISODES = [
+    # the study's default case, a whole episode (746 steps) with the Reynolds flock
+    ({}, "reynolds", None),
+    ({"robots": 19}, "reynolds", 300),
+    # random commands up to twice the speed limit: the limit scales most of them, and every
+    # violation flag flips on and off
+    ({"robots": 19}, "random", 200),
+    # static slots and the leader frame, with the safety reward terms and sensing noise
+    ({"sense_walls": True, "frame": "leader", "reward": "safe", "obs_noise": 0.02},
+     "reynolds", 300),
+    ({"scene": "pillars", "static_slots": 2, "lidar_rays": 8}, "reynolds", 200),
+    # robots with headings (neighbour heading blocks read the kernel's neighbour index)
+    ({"robot": "turtlebot3_burger", "robots": 9}, "random", 150),
+    # no neighbour slots at all (the compiled blocks with an empty index)
+    ({"robots": 5, "neighbours": 0, "obs_noise": 0.02}, "random", 50),
+    # the KD-tree's neighbour search feeding the compiled observation blocks
+    ({"robots": 100, "arena_half_size": 8.0}, "random", 20),
+]
+
+
+@pytest.mark.parametrize("fields, policy, cycles", EPISODES, ids=str)
+def test_episodes_are_bit_identical_to_the_numpy_reference(fields, policy, cycles):
+    fields = dict(fields, **({"max_cycles": cycles} if cycles else {}))
+    fast, slow = parallel_env(**fields), parallel_env(**fields)
+    obs = fast.reset_arrays(seed=2)
+    with kernels.reference():
+        ref = slow.reset_arrays(seed=2)
+    _same(obs, ref, "reset observations")
+    reynolds = ReynoldsPolicy()
+    reynolds.bind(fast)
+    reynolds.reset(0)
+    rng = np.random.default_rng(1)
+    limit = 2 * fast.config.world.max_speed
+    step = 0
+    while fast.agents:
+        act = (reynolds.act_batch(obs) if policy == "reynolds"
+               else rng.uniform(-limit, limit, (len(obs), 2)))
+        res = fast.step_arrays(act)
+        with kernels.reference():
+            want = slow.step_arrays(act)
+        _same(res.observations, want.observations, f"step {step} observations")
+        _same(res.rewards, want.rewards, f"step {step} rewards")
+        for row, key in enumerate(REWARD_INFO_KEYS):
+            _same(res.terms[row], want.terms[row], f"step {step} {key}")
+        assert res.truncated == want.truncated, step
+        obs = res.observations
+        step += 1
+    assert step == (cycles or 746)
+    assert fast.episode_metrics() == slow.episode_metrics()
+    _same(fast.state(), slow.state(), "final state")
+
+
+def _both_neighbours(positions, horizon, k):
+    got = nearest_neighbours(positions, horizon, k)
+    with kernels.reference():
+        want = nearest_neighbours(positions, horizon, k)
+    return got, want
+
+
+@pytest.mark.parametrize("k", [1, 3, 5, 30])
+def test_neighbour_search_keeps_exact_ties_in_index_order(k):
+    # a grid: many exact ties; robot 20 exactly on robot 5 (distance 0: never each other's
+    # neighbour); robot 21 exactly at the horizon of robot 19 (it counts)
+    grid = np.array([[x, y] for x in range(5) for y in range(4)], dtype=float) * 0.5
+    positions = np.vstack([grid, [[0.5, 0.5], [2.0, 3.0]]])
+    got, want = _both_neighbours(positions, 1.5, k)
+    _same(got[0], want[0], "index")
+    _same(got[1], want[1], "distance")
+    # hand-checked: robot 1 at (0, 0.5) has robots 0, 2, 5 and 20 at exactly 0.5 m (index
+    # order), then robots 4 and 6 at sqrt(0.5) m
+    assert got[0][0].tolist() == [0, 2, 5, 20, 4, 6][:k] or k == 30
+    assert 20 not in got[0][4] and 5 not in got[0][19], "distance 0 is never a neighbour"
+    assert (21 in got[0][18]) == (k == 30), "a robot exactly at the horizon counts"
+
+
+def test_clip_speed_kernel_matches_on_ordinary_zero_and_huge_rows():
+    rng = np.random.default_rng(0)
+    rows = np.vstack([rng.uniform(-1, 1, (50, 2)), [[0.0, 0.0], [0.3, 0.4]]])
+    for limit in (0.5, 2.0):
+        got = clip_speed(rows, limit)
+        with kernels.reference():
+            want = clip_speed(rows, limit)
+        _same(got, want, f"limit {limit}")
+    assert clip_speed(rows, 2.0) is rows or np.shares_memory(clip_speed(rows, 2.0), rows)
+    huge = np.array([[1e155, 0.0], [1e300, -1e300], [0.3, 0.4]])
+    np.testing.assert_array_equal(clip_speed(huge, 0.5),
+                                  [[0.5, 0.0], [0.5 / np.sqrt(2), -0.5 / np.sqrt(2)],
+                                   [0.3, 0.4]])
+
+
+def test_safety_flags_kernel_matches_the_kd_tree():
+    from boids_env.metrics import safety_flags
+
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        n = int(rng.integers(2, 40))
+        positions = rng.normal(0, [0.05, 0.5, 3.0][trial % 3], (n, 2))
+        positions[n // 2] = positions[0]  # a robot exactly on the leader: distance 0
+        near = rng.random(n - 1) < 0.5
+        got = safety_flags(positions, 0.036, 0.15, near)
+        with kernels.reference():
+            want = safety_flags(positions, 0.036, 0.15, near)
+        for name in want:
+            _same(got[name], want[name], f"trial {trial} {name}")
+    # hand-checked: followers 0.1 m and 0.3 m from the leader, 0.2 m from each other
+    flags = safety_flags(np.array([[0.0, 0.0], [0.1, 0.0], [0.3, 0.0]]), 0.036, 0.15,
+                         np.zeros(2, dtype=bool))
+    assert flags["proximity"].tolist() == [True, False]
+    assert flags["contact"].tolist() == [False, False]
+
+
+DIGEST = """
+import hashlib
+import numpy as np
+from boids_env import kernels, parallel_env
+from boids_env.eval.episode import run_episode
+from boids_env.policies import ReynoldsPolicy
+env = parallel_env(robots=19, reward="safe", max_cycles=100)
+rec = run_episode(env, ReynoldsPolicy(), seed=4, record=True).recording
+print(kernels.compiled() is not None,
+      hashlib.sha256(rec.positions.tobytes() + rec.commanded.tobytes()).hexdigest())
+"""
+
+
+@pytest.mark.slow
+def test_kernels_give_the_same_bits_compiled_for_a_baseline_cpu(tmp_path):
+    """numba compiles for the host's instruction set; compiled for a baseline x86-64 CPU
+    (``NUMBA_CPU_NAME=generic``: no AVX, no FMA) the episode is the same bits, and the
+    same as the numpy reference's (each run a fresh process)."""
+    import os
+    import subprocess
+    import sys
+
+    runs = {}
+    for name, extra in (("host", {"BOIDS_KERNELS": "1"}),
+                        ("generic", {"BOIDS_KERNELS": "1", "NUMBA_CPU_NAME": "generic"}),
+                        ("numpy", {"BOIDS_KERNELS": "0"})):
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / name), **extra}
+        done = subprocess.run([sys.executable, "-c", DIGEST], env=env, capture_output=True,
+                              text=True, timeout=600)
+        assert done.returncode == 0, done.stderr[-3000:]
+        runs[name] = done.stdout.split()
+    assert runs["host"][0] == runs["generic"][0] == "True" and runs["numpy"][0] == "False"
+    assert runs["host"][1] == runs["generic"][1] == runs["numpy"][1], runs
+
+
+def test_kernels_that_cannot_load_leave_the_numpy_reference_with_a_warning(monkeypatch):
+    """numba raises RuntimeError when it finds no writable cache folder: the env still
+    runs, on numpy, and says why."""
+    import sys
+
+    import boids_env
+
+    class Refuse:
+        def find_spec(self, name, path=None, target=None):
+            if name == "boids_env._compiled":
+                raise RuntimeError("cannot cache function 'nearest': no locator available")
+            return None
+
+    monkeypatch.delitem(sys.modules, "boids_env._compiled")
+    monkeypatch.delattr(boids_env, "_compiled")
+    monkeypatch.setattr(sys, "meta_path", [Refuse(), *sys.meta_path])
+    monkeypatch.setattr(kernels, "_loaded", False)
+    monkeypatch.setattr(kernels, "_module", None)
+    with pytest.warns(RuntimeWarning, match="numpy reference runs instead"):
+        assert kernels.load() is None
+    assert kernels.compiled() is None
+    env = parallel_env(robots=5, max_cycles=3)
+    env.reset_arrays(seed=0)
+    assert env.step_arrays(np.zeros((4, 2))).observations.shape == (4, 6 + 5 * 18)
