@@ -91,7 +91,8 @@ def _sim_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> 
                    help="also hold tick 0 until NODE subscribes to the odometry, /tf and "
                    "/clock; repeatable")
     p.add_argument("--out", default=None, help="output folder (none: print only)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true",
+                   help="print only the metrics (no notes on the graph or its waiting)")
     _add_transport_args(p)
     helpers["add_live_args"](p)
     p.set_defaults(func=_cmd_sim, helpers=helpers)
@@ -147,7 +148,8 @@ def _controller_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, An
     p.add_argument("--config-wait", type=float, default=30.0,
                    help="seconds to wait for the simulator's /boids/env_config (30)")
     p.add_argument("--no-markers", action="store_true", help="do not publish the markers")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true",
+                   help="print nothing but errors (no notes on episodes and the graph)")
     _add_transport_args(p)
     p.set_defaults(func=_cmd_controller, helpers=helpers)
 
