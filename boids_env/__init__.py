@@ -80,18 +80,28 @@ def _register_gymnasium_ids() -> None:
 class _RegisterAfterGymnasium(importlib.abc.MetaPathFinder):
     """Registers the ids once gymnasium has been imported, whoever imports it: importing
     gymnasium (and numpy) with the package would run before the ``boids`` command can answer
-    a Ctrl-C (see above), and the command never needs the ids."""
+    a Ctrl-C (see above), and the command never needs the ids. A look-up that imports
+    nothing (``importlib.util.find_spec``, as :mod:`boids_env.extras` probes the extras)
+    leaves the hook in place: it goes once gymnasium has run."""
+
+    def __init__(self) -> None:
+        self._looking = False
 
     def find_spec(self, name: str, path: Any = None, target: Any = None) -> Any:
-        if name != "gymnasium":
+        if name != "gymnasium" or self._looking:
             return None
-        sys.meta_path.remove(self)
-        spec = importlib.util.find_spec(name)
+        self._looking = True  # the look-up below comes back through sys.meta_path
+        try:
+            spec = importlib.util.find_spec(name)
+        finally:
+            self._looking = False
         if spec is not None and spec.loader is not None:
             exec_module = spec.loader.exec_module
 
             def exec_then_register(module: Any) -> None:
                 exec_module(module)
+                if self in sys.meta_path:
+                    sys.meta_path.remove(self)
                 _register_gymnasium_ids()
 
             spec.loader.exec_module = exec_then_register  # type: ignore[method-assign]

@@ -59,6 +59,10 @@ def test_the_package_imports_no_gymnasium_and_registers_whichever_comes_first():
              "'boids_env/SingleFollower-v0' in gymnasium.registry")
     for imports in ("import sys, boids_env; bare = 'gymnasium' in sys.modules; "
                     "import gymnasium; print(bare, " + probe + ")",
+                    # a probe that imports nothing (as boids_env.extras checks the extras)
+                    "import sys, importlib.util, boids_env; importlib.util.find_spec("
+                    "'gymnasium'); bare = 'gymnasium' in sys.modules; import gymnasium; "
+                    "print(bare, " + probe + ")",
                     "import sys, gymnasium, boids_env; print(False, " + probe + ")"):
         out = subprocess.run([sys.executable, "-c", imports], capture_output=True, text=True,
                              check=True)
