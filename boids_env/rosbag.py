@@ -293,6 +293,45 @@ def _humble_metadata(folder: Path, name: str) -> None:
     meta.write_text(out.getvalue())
 
 
+MAX_BAG_BYTES = 1024 * 1024 * 1024
+"""Largest bag read (1 GiB: a ROS 1 file, or a ROS 2 folder's files together)."""
+MAX_BAG_MESSAGES = 5_000_000
+"""Most messages a bag may hold (each odometry sample is kept until the end: about 5 GB of
+Python objects at this bound would be far beyond any episode; 19 robots at 10 Hz for an hour
+send 1.4 M)."""
+
+
+def check_bag(path: Path) -> None:
+    """Refuses, before rosbags opens it, a bag that is not a regular file (or a folder of
+    regular files, its own ``metadata.yaml`` read with the bounded YAML reader) within
+    :data:`MAX_BAG_BYTES`: a bag is a file from elsewhere."""
+    from boids_env.untrusted import check_file, parse_yaml, quote_path, read_text
+
+    if not path.is_dir():
+        check_file(path, "bag", MAX_BAG_BYTES)
+        return
+    total = 0
+    for member in sorted(path.iterdir()):
+        if member.is_symlink() or member.is_dir():
+            raise ValueError(f"bag {quote_path(path)}: {quote_path(member.name)} is a link or a "
+                             f"folder; a ROS 2 bag folder holds plain files only")
+        total += check_file(member, "bag", MAX_BAG_BYTES)
+        if total > MAX_BAG_BYTES:
+            raise ValueError(f"bag {quote_path(path)}: more than the {MAX_BAG_BYTES:,} bytes "
+                             f"allowed")
+    meta = path / "metadata.yaml"
+    if meta.exists():
+        parse_yaml(read_text(meta, "bag metadata", 1024 * 1024), "bag metadata")
+
+
+def _bounded(messages: Any) -> Any:
+    """The bag's messages, refused past :data:`MAX_BAG_MESSAGES`."""
+    for count, message in enumerate(messages, 1):
+        if count > MAX_BAG_MESSAGES:
+            raise ValueError(f"more than the {MAX_BAG_MESSAGES:,} messages a bag may hold")
+        yield message
+
+
 def read_bag(path: str | Path, config: EnvConfig | None = None, *,
              odometry_only: bool = False, answers: bool = False) -> Recording:
     """Reads a bag (ROS 1 file, or ROS 2 folder: MCAP or SQLite) with ``/robot_k/odom`` and
@@ -324,13 +363,14 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"bag not found: {path}")
+    check_bag(path)
     store = get_typestore(Stores.ROS1_NOETIC if path.is_file() else Stores.ROS2_HUMBLE)
     odom: dict[int, list[tuple[int, float, float, float, float]]] = {}
     cmd: dict[int, list[tuple[float, float]]] = {}
     leader_path: np.ndarray | None = None
     try:
         with AnyReader([path], default_typestore=store) as reader:
-            for conn, stamp, raw in reader.messages():
+            for conn, stamp, raw in _bounded(reader.messages()):
                 if conn.topic == PATH_TOPIC and leader_path is None:  # ours: the first one
                     poses = reader.deserialize(raw, conn.msgtype).poses
                     leader_path = np.array([(p.pose.position.x, p.pose.position.y)

@@ -153,3 +153,49 @@ def test_answers_moves_each_command_one_sample_later_and_allows_the_last_missing
     short = custom_bag(tmp_path / "short.bag", {0: 12, 1: 12}, {0: 12, 1: 10})
     with pytest.raises(ValueError, match=r"\(11 or 12\); cmd_vel counts differ for robot_1: 10"):
         read_bag(short, answers=True)
+
+
+def test_a_bag_that_is_not_a_regular_file_within_budget_is_refused_unread(tmp_path, monkeypatch):
+    """A bag is a file from elsewhere (issue 39's rules): a FIFO would block the reader,
+    /dev/zero fill memory, a huge folder exhaust it."""
+    import os
+
+    from boids_env import rosbag
+
+    fifo = tmp_path / "fifo.bag"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="not a regular file"):
+        read_bag(fifo)
+    (tmp_path / "zero.bag").symlink_to("/dev/zero")
+    with pytest.raises(ValueError, match="not a regular file"):
+        read_bag(tmp_path / "zero.bag")
+    bag = custom_bag(tmp_path / "ok.bag", {0: 3, 1: 3}, {0: 3, 1: 3})
+    monkeypatch.setattr(rosbag, "MAX_BAG_BYTES", 100)
+    with pytest.raises(ValueError, match=r"more than the 100 allowed"):
+        read_bag(bag)
+
+
+def test_a_bag_with_too_many_messages_is_refused(tmp_path, monkeypatch):
+    from boids_env import rosbag
+
+    bag = custom_bag(tmp_path / "b.bag", {0: 5, 1: 5}, {0: 5, 1: 5})
+    monkeypatch.setattr(rosbag, "MAX_BAG_MESSAGES", 12)
+    with pytest.raises(ValueError, match=r"more than the 12 messages a bag may hold"):
+        read_bag(bag)
+    monkeypatch.setattr(rosbag, "MAX_BAG_MESSAGES", 20)
+    assert read_bag(bag).positions.shape[0] == 5
+
+
+def test_a_ros2_bag_folder_holds_plain_files_and_bounded_metadata(tmp_path):
+    folder = tmp_path / "bag2"
+    folder.mkdir()
+    (folder / "metadata.yaml").write_text(
+        'a: &a ["x","x","x","x","x","x","x","x","x"]\nb: &b [*a,*a,*a,*a,*a,*a,*a,*a,*a]\n'
+        'c: &c [*b,*b,*b,*b,*b,*b,*b,*b,*b]\nd: &d [*c,*c,*c,*c,*c,*c,*c,*c,*c]\n'
+        'e: &e [*d,*d,*d,*d,*d,*d,*d,*d,*d]\nf: &f [*e,*e,*e,*e,*e,*e,*e,*e,*e]\n')
+    with pytest.raises(ValueError, match="bag metadata"):
+        read_bag(folder)
+    (folder / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (folder / "sub").mkdir()
+    with pytest.raises(ValueError, match="plain files only"):
+        read_bag(folder)
