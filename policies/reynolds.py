@@ -12,6 +12,11 @@ position, v_j their velocity, v own velocity and clip(x, L) = x·L/|x| when |x| 
 - F = clip(Σ w·F, max_force);  command = clip(v + F / mass · dt, max_speed)
 - zero command for the first ``startup_time`` seconds after reset.
 
+Beyond the study, preset ``route`` (``follow_route``): the leader term aims along the route
+through free space (the observation's ``route`` block, :mod:`boids_env.world.route`),
+F_lead = d·L with d the route's unit direction and L its length, so a follower behind a wall
+seeks the door rather than the wall (the straight line where no free route exists).
+
 Beyond the study (on in any scene but the study's empty arena, see ``obstacle_avoidance``):
 - obstacle   F_obs = −max_force · Σ_m s_m · n_m over the static slots m (n_m the unit vector
   towards the surface point at distance d_m, u_m = max(0, v·n_m) the approach speed),
@@ -183,6 +188,16 @@ def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
     return command, weighted
 
 
+def route_leader_force(obs: FloatArray, layout: ObservationLayout) -> FloatArray:
+    """The leader term along the route (F, 2): the route block's direction × its length (the
+    straight line's where no free route exists, which the block already holds)."""
+    if not layout.route:
+        raise ValueError("follow_route needs the observations' route block: make the env with "
+                         "route_sensing=True (the policy's env_fields)")
+    route = obs[:, layout.block("route")]
+    return route[:, 0:2] * route[:, 2:3]
+
+
 def clip_norm_each(x: FloatArray, limits: FloatArray) -> FloatArray:
     """Rows of ``x`` (F, 2) scaled down to their own ``limits`` (F,) where longer."""
     norm = np.sqrt(x[..., 0] * x[..., 0] + x[..., 1] * x[..., 1])
@@ -214,6 +229,8 @@ class ReynoldsPolicy(BatchPolicy):
         self.avoid = bool(self.params.obstacle_avoidance) and bool(layout and layout.static)
         self.pedestrian_radius = 0.22
         self._steps = 0
+        if self.params.follow_route:  # the route preset reads the env's route sensing
+            self.env_fields = {"route_sensing": True}
 
     def bind(self, env: Any) -> None:
         """Reads ``env``'s observation layout, whether its scene is the study's arena (any
@@ -257,6 +274,8 @@ class ReynoldsPolicy(BatchPolicy):
             forces["leader"] = proxemic_leader_force(obs[:, layout.leader_position],
                                                      obs[:, layout.leader_velocity],
                                                      p.personal_space)
+        if p.follow_route:
+            forces["leader"] = route_leader_force(obs, layout)
         if self.avoid or people:
             static = layout.static_slots(obs) if self.avoid else np.zeros((len(obs), 0, 3))
             points, valid, moving = static[..., :2], static[..., 2] > 0.5, own
