@@ -362,3 +362,13 @@ def _plan(scene: Scene, grid: RouteGrid, goals: list[tuple[float, float]]
         if p != dedup[-1]:
             dedup.append(p)
     return dedup if len(dedup) >= 2 else None
+
+
+def doorways(scene: Scene) -> FloatArray:
+    """The middle (D, 2) of each door of a generated plan (the gaps in its corridor walls)."""
+    out = []
+    for side in ("north corridor wall", "south corridor wall"):
+        k = [i for i, name in enumerate(scene.names[:len(scene.radius)]) if name == side]
+        for left, right in zip(k[:-1], k[1:], strict=True):
+            out.append((scene.b[left] + scene.a[right]) / 2)
+    return np.array(out).reshape(-1, 2)
