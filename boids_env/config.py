@@ -728,6 +728,11 @@ class ReynoldsParams:
     the study; preset ``route``): the leader term becomes the route's direction × its length
     from the observations' ``route`` block, so a follower behind a wall heads for the door.
     The policy then asks the env for ``route_sensing``."""
+    robot_avoidance: float = 0.0
+    """Surface-to-surface distance (m) within which another robot counts as an obstacle
+    point of the obstacle rule (served first, its approach speed × ``obstacle_lookahead``
+    counted as nearer), so that a flock squeezed through a door or a corridor does not
+    touch (not in the study; preset ``route``: 0.15). 0: off."""
 
     def __post_init__(self) -> None:
         if self.obstacle_avoidance is not None:
@@ -741,6 +746,8 @@ class ReynoldsParams:
         _set(self, "personal_space", _number("personal_space", self.personal_space, 0.0, 5.0,
                                              unit="m"))
         _set(self, "follow_route", _flag("follow_route", self.follow_route))
+        _set(self, "robot_avoidance", _number("robot_avoidance", self.robot_avoidance, 0.0, 5.0,
+                                              unit="m"))
         for name in ("separation_weight", "cohesion_weight", "alignment_weight",
                      "leader_weight"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 100))
@@ -765,7 +772,7 @@ PRESETS: dict[str, ReynoldsParams] = {
     # Beyond the study: the proxemics-aware leader term for following a person.
     "proxemic": ReynoldsParams(personal_space=1.2),
     # Beyond the study: the leader sought along its route through doors (route sensing).
-    "route": ReynoldsParams(follow_route=True),
+    "route": ReynoldsParams(follow_route=True, robot_avoidance=0.15),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
 

@@ -41,6 +41,7 @@ zone) replaces it with
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any
 
 import numpy as np
@@ -188,6 +189,33 @@ def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
     return command, weighted
 
 
+def robot_avoidance_force(slots: FloatArray, own_velocity: FloatArray, radius: float,
+                          p: ReynoldsParams) -> FloatArray:
+    """Other robots as obstacle points (F, 2): each neighbour's nearest surface point pushes
+    as an obstacle does, within ``robot_avoidance`` instead of ``obstacle_distance`` and with
+    the speed closing on it (``robot_avoidance``, preset ``route``).
+
+    Args:
+        slots: (F, K, 5) neighbour slots.
+        own_velocity: (F, 2) each follower's velocity.
+        radius: the robots' radius (m).
+        p: controller parameters.
+    """
+    rel, vel = slots[..., 0:2], slots[..., 2:4]
+    dist = np.sqrt(rel[..., 0] * rel[..., 0] + rel[..., 1] * rel[..., 1])
+    valid = (slots[..., 4] > 0.5) & (dist > 0)
+    surface = rel * (np.maximum(dist - 2 * radius, 1e-6) / np.where(dist > 0, dist, 1.0))[
+        ..., None]
+    closing = own_velocity[:, None, :] - vel
+    return obstacle_force(surface, valid, closing, _within(p, p.robot_avoidance))
+
+
+@functools.lru_cache(maxsize=16)
+def _within(p: ReynoldsParams, distance: float) -> ReynoldsParams:
+    """``p`` with ``obstacle_distance`` set to ``distance`` (cached: built once per policy)."""
+    return dataclasses.replace(p, obstacle_distance=distance)
+
+
 def route_leader_force(obs: FloatArray, layout: ObservationLayout) -> FloatArray:
     """The leader term along the route (F, 2): the route block's direction × its length (the
     straight line's where no free route exists, which the block already holds)."""
@@ -228,6 +256,7 @@ class ReynoldsPolicy(BatchPolicy):
         self.layout = layout
         self.avoid = bool(self.params.obstacle_avoidance) and bool(layout and layout.static)
         self.pedestrian_radius = 0.22
+        self.robot_radius = 0.036
         self._steps = 0
         if self.params.follow_route:  # the route preset reads the env's route sensing
             self.env_fields = {"route_sensing": True}
@@ -243,6 +272,7 @@ class ReynoldsPolicy(BatchPolicy):
         wanted = self.params.obstacle_avoidance
         self.avoid = bool(self.layout.static) and (auto if wanted is None else wanted)
         self.pedestrian_radius = config.scenario.person_radius
+        self.robot_radius = config.world.robot_radius
         if "max_speed" not in self._given and self.params.max_speed != config.world.max_speed:
             self.params = dataclasses.replace(self.params, max_speed=config.world.max_speed)
 
@@ -261,7 +291,8 @@ class ReynoldsPolicy(BatchPolicy):
         holding = self._steps * p.dt < p.startup_time - 1e-9
         self._steps += 1
         people = bool(layout.pedestrians)
-        rules = (*RULES, OBSTACLE) if self.avoid or people else RULES
+        crowding = p.robot_avoidance > 0
+        rules = (*RULES, OBSTACLE) if self.avoid or people or crowding else RULES
         if holding:
             self.forces = {name: np.zeros((len(obs), 2)) for name in rules}
             return np.zeros((len(obs), 2), dtype=np.float32)
@@ -288,5 +319,8 @@ class ReynoldsPolicy(BatchPolicy):
                 moving = np.concatenate([np.broadcast_to(own[:, None, :], static[..., :2].shape),
                                          relative], axis=1)
             forces[OBSTACLE] = obstacle_force(points, valid, moving, p)
+        if crowding:
+            push = robot_avoidance_force(layout.slots(obs), own, self.robot_radius, p)
+            forces[OBSTACLE] = forces[OBSTACLE] + push if OBSTACLE in forces else push
         command, self.forces = reynolds_command(forces, own, p)
         return command.astype(np.float32)
