@@ -426,9 +426,9 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         ``polarization``: the episode mean of |mean unit velocity| of the moving robots;
         ``mean_leader_distance``: the followers' mean distance to the leader (m);
         ``final_leader_distance_max``: the farthest any follower is from the leader at the
-        last sample (m: a follower left behind); ``lost_followers``: how many followers end
-        farther than :data:`LOST_DISTANCE` from the leader; ``no_sight``: each follower's fraction of
-        time without line of sight to the leader (a list); the safety metrics of
+        last sample (m: a follower left behind); ``lost_followers``: how many followers
+        end farther than :data:`LOST_DISTANCE` from the leader; ``no_sight``: each follower's
+        fraction of time without line of sight to the leader (a list); the safety metrics of
         :func:`safety_metrics` (``SAFETY_KEYS``); when the leader stood still for more than
         5 s, :func:`parked_metrics`; with a person leading, the proxemics of
         :func:`boids_env.proxemics.person_metrics`; with a crowd,

@@ -31,6 +31,7 @@ differently.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -40,7 +41,6 @@ from scipy.sparse.csgraph import dijkstra
 
 from boids_env.world.layout import follower_cells
 from boids_env.world.route import RouteGrid, route_grid
-from boids_env.world.scenario import rotation_matrix
 from boids_env.world.scene import STUDY_DEFAULTS, Scene
 
 FloatArray = npt.NDArray[np.float64]
@@ -271,11 +271,15 @@ def _with_route(scene: Scene, seed: int, rooms: list[Room], kinds: list[str],
     if not len(grid.centres):
         return None
     order = [int(k) for k in rng.permutation(len(rooms))]
-    home = order[0]
-    start = _open_spot(scene, rooms[home])
-    if start is None:
+    spots = [_open_spot(scene, rooms[k]) for k in order]
+    homes = [k for k, spot in zip(order, spots, strict=True) if spot is not None]
+    if not homes:
         return None
-    visits = order[1:3]
+    home = homes[0]  # the first room drawn that holds the start
+    spot = spots[order.index(home)]
+    assert spot is not None
+    start, facing = (spot[0], spot[1]), spot[2]
+    visits = [k for k in order if k != home][:2]
     goals: list[tuple[float, float]] = [start, rooms[home].inward(0.6)]
     width = scene.box[2] - scene.box[0]  # type: ignore[index]
     dead_end = rng.random() < 0.5
@@ -289,9 +293,9 @@ def _with_route(scene: Scene, seed: int, rooms: list[Room], kinds: list[str],
     path = _plan(scene, grid, goals)
     if path is None:
         return None
-    heading = math.degrees(math.atan2(path[1][1] - path[0][1], path[1][0] - path[0][0]))
+    path[0] = start  # exactly where the grid was fitted, facing the door
     defaults = {**STUDY_DEFAULTS, "path": "waypoints", "waypoints": tuple(path[1:]),
-                "start": path[0], "start_heading": round(heading, 6)}
+                "start": start, "start_heading": facing}
     described = (f"generated floor plan {seed} (generator v{VERSION}): "
                  f"{width:.1f} m × {scene.bounds[3] - scene.bounds[1]:.1f} m, a "
                  f"{corridor:.2f} m corridor, {len(rooms)} rooms ({kinds.count('office')} "
@@ -302,16 +306,12 @@ def _with_route(scene: Scene, seed: int, rooms: list[Room], kinds: list[str],
                  radius=scene.radius, polygons=scene.polygons, names=scene.names,
                  defaults=defaults)
     made._cache.update({k: v for k, v in scene._cache.items() if k[0] == "route"})
-    # the study's largest group (19 robots, 0.5 m apart) fits behind the start
-    turn = rotation_matrix(math.radians(heading) - math.pi / 2)
-    cells = follower_cells(START_ROBOTS) @ turn.T + np.asarray(path[0])
-    if np.any(made.clearance(cells) <= 0.15):
-        return None
     return made
 
 
-def _open_spot(scene: Scene, room: Room) -> tuple[float, float] | None:
-    """The point of ``room`` 1.2 m or more in from its door farthest from every wall."""
+def _open_spot(scene: Scene, room: Room) -> tuple[float, float, float] | None:
+    """The most open point of ``room``, 1.2 m or more in from its door, where the study's
+    largest start grid fits behind a leader facing the door (None if there is none)."""
     xs = np.arange(room.x0 + 0.2, room.x1 - 0.2, 0.1)
     ys = np.arange(min(room.y0, room.y1) + 0.2, max(room.y0, room.y1) - 0.2, 0.1)
     gx, gy = np.meshgrid(xs, ys)
@@ -319,10 +319,34 @@ def _open_spot(scene: Scene, room: Room) -> tuple[float, float] | None:
     clear = scene.clearance(pts)
     dx, dy = room.door_point
     clear = np.where(np.hypot(pts[:, 0] - dx, pts[:, 1] - dy) >= 1.2, clear, -1.0)
-    k = int(np.argmax(clear))
-    if clear[k] < 1.0:
+    order = np.argsort(-clear, kind="stable")[:300]
+    order = order[clear[order] >= 0.6]
+    if not len(order):
         return None
-    return (round(float(pts[k, 0]), 3), round(float(pts[k, 1]), 3))
+    cand = pts[order]
+    heading = np.arctan2(dy - cand[:, 1], dx - cand[:, 0])
+    cells = _grid_cells(cand, heading)
+    fits = (scene.clearance(cells.reshape(-1, 2)).reshape(len(cand), -1) > START_CLEARANCE
+            ).all(axis=1)
+    if not fits.any():
+        return None
+    k = int(np.argmax(fits))
+    return (round(float(cand[k, 0]), 3), round(float(cand[k, 1]), 3),
+            round(math.degrees(float(heading[k])), 6))
+
+
+START_CLEARANCE = 0.15
+"""Each start cell of the study's largest group keeps this far from walls (m)."""
+
+
+def _grid_cells(starts: FloatArray, heading: FloatArray) -> FloatArray:
+    """(S, 18, 2) the 19-robot start grid behind leaders at ``starts`` facing ``heading``
+    (rad), as :func:`~boids_env.world.scenario.initial_positions` lays it out."""
+    cells = follower_cells(START_ROBOTS)
+    turn = heading - math.pi / 2
+    c, s = np.cos(turn)[:, None], np.sin(turn)[:, None]
+    return np.stack([cells[:, 0] * c - cells[:, 1] * s + starts[:, 0:1],
+                     cells[:, 0] * s + cells[:, 1] * c + starts[:, 1:2]], axis=-1)
 
 
 def _plan(scene: Scene, grid: RouteGrid, goals: list[tuple[float, float]]
@@ -335,7 +359,7 @@ def _plan(scene: Scene, grid: RouteGrid, goals: list[tuple[float, float]]
         return None
     cells: list[int] = [int(nodes[0])]
     marks = [0]  # where each goal lies on the cell line: kept as waypoints
-    for a, b in zip(nodes[:-1], nodes[1:], strict=True):
+    for a, b in itertools.pairwise(nodes):
         if a != b:
             cost, pred = dijkstra(grid.graph, indices=int(b), return_predecessors=True)
             if not np.isfinite(cost[a]):
@@ -347,7 +371,7 @@ def _plan(scene: Scene, grid: RouteGrid, goals: list[tuple[float, float]]
         marks.append(len(cells) - 1)
     line = grid.centres[cells]
     keep = [0]
-    for lo, hi in zip(marks[:-1], marks[1:], strict=True):
+    for lo, hi in itertools.pairwise(marks):
         i = lo
         while i < hi:  # the farthest point in sight (with the clearance) before the next goal
             ahead = np.arange(i + 1, hi + 1)
@@ -369,6 +393,6 @@ def doorways(scene: Scene) -> FloatArray:
     out = []
     for side in ("north corridor wall", "south corridor wall"):
         k = [i for i, name in enumerate(scene.names[:len(scene.radius)]) if name == side]
-        for left, right in zip(k[:-1], k[1:], strict=True):
+        for left, right in itertools.pairwise(k):
             out.append((scene.b[left] + scene.a[right]) / 2)
     return np.array(out).reshape(-1, 2)
