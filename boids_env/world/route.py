@@ -16,8 +16,9 @@ its ``occupancy``), keyed by robot radius and cell size: built once per scene, n
 robot or step. Each step one Dijkstra from the leader's cell (``scipy.sparse.csgraph``) gives
 every cell's route cost and its next cell towards the leader; the last few fields are kept
 by leader cell (a scripted leader drives the same cells in every episode). Each follower
-then reads its cell, walks :data:`LOOKAHEAD` m along the next-cell chain and aims at that
-point, all followers in one array pass.
+then reads its cell, walks up to :data:`LOOKAHEAD` m along the next-cell chain as far as it
+sees the chain's cells through free cells, and aims at that point (so it never aims across
+a door's jamb), all followers in one array pass.
 
 A follower whose cell is not free (touching a wall) reads the nearest free cell's; where no
 free path exists (a door too narrow, a closed room), the sensor says so with its valid flag 0
@@ -152,8 +153,8 @@ class RouteField:
     """The leader's node."""
     cost: npt.NDArray[np.float32]
     """(nodes,) route cost to the leader (m, wall penalty included; inf: no route)."""
-    ahead: npt.NDArray[np.int32]
-    """(nodes,) the node :data:`LOOKAHEAD` m along each node's route (itself at the leader)."""
+    next: npt.NDArray[np.int32]
+    """(nodes,) the next node along each node's route (itself at the leader)."""
 
 
 def route_field(grid: RouteGrid, leader: FloatArray) -> RouteField | None:
@@ -168,14 +169,37 @@ def route_field(grid: RouteGrid, leader: FloatArray) -> RouteField | None:
         return kept[node]
     cost, pred = dijkstra(grid.graph, indices=node, return_predecessors=True)
     nxt = np.where(pred >= 0, pred, np.arange(len(pred)))
-    ahead = np.arange(len(pred))
-    for _ in range(max(1, round(LOOKAHEAD / grid.cell))):
-        ahead = nxt[ahead]
-    field = RouteField(node, cost.astype(np.float32), ahead.astype(np.int32))
+    field = RouteField(node, cost.astype(np.float32), nxt.astype(np.int32))
     kept[node] = field
     if len(kept) > FIELDS_KEPT:
         kept.popitem(last=False)
     return field
+
+
+def _in_sight_ahead(grid: RouteGrid, field: RouteField, node: npt.NDArray[np.intp],
+                    points: FloatArray) -> npt.NDArray[np.intp]:
+    """The farthest node up to :data:`LOOKAHEAD` m along each follower's route that it sees
+    through free cells (every earlier one seen too), so its aim never cuts a door's jamb;
+    the next node where it sees none."""
+    steps = max(1, round(LOOKAHEAD / grid.cell))
+    cur = field.next[node]
+    best = cur.astype(np.intp)
+    alive = np.ones(len(node), dtype=bool)
+    t = np.linspace(0.0, 1.0, 2 * steps + 1)[None, :, None]
+    h, w = grid.free.shape
+    flat = grid.free.ravel()
+    for _ in range(steps):
+        ends = grid.centres[cur]
+        samples = points[:, None, :] + t * (ends - points)[:, None, :]  # (F, S, 2)
+        col = np.floor((samples[..., 0] - grid.origin[0]) / grid.cell).astype(np.intp)
+        row = np.floor((samples[..., 1] - grid.origin[1]) / grid.cell).astype(np.intp)
+        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+        free = np.where(inside, flat[np.clip(row, 0, h - 1) * w + np.clip(col, 0, w - 1)],
+                        False)
+        alive &= free[:, 1:].all(axis=1)  # the follower's own spot may touch a wall
+        best = np.where(alive, cur, best)
+        cur = field.next[cur]
+    return best
 
 
 def sense_route(grid: RouteGrid, positions: FloatArray) -> tuple[FloatArray, FloatArray,
@@ -188,8 +212,8 @@ def sense_route(grid: RouteGrid, positions: FloatArray) -> tuple[FloatArray, Flo
 
     Returns:
         ``(direction (F, 2), length (F,), valid (F,))`` for the N−1 followers: the unit vector
-        towards the point :data:`LOOKAHEAD` m along the route (towards the leader itself
-        within that distance) and the route's cost (m); where no route exists, ``valid`` is
+        towards the farthest point in sight up to :data:`LOOKAHEAD` m along the route
+        (towards the leader itself within that distance) and the route's cost (m); where no route exists, ``valid`` is
         False and direction and length are the straight line's. A follower on the leader
         gets a zero direction.
     """
@@ -205,7 +229,7 @@ def sense_route(grid: RouteGrid, positions: FloatArray) -> tuple[FloatArray, Flo
         node = grid.cells_of(points)
         cost = field.cost[node].astype(float)
         valid = np.isfinite(cost)
-        ahead = field.ahead[node]
+        ahead = _in_sight_ahead(grid, field, node, points)
         target = np.where((ahead == field.leader)[:, None], leader, grid.centres[ahead])
         aim = np.where(valid[:, None], target - points, straight)
         length = np.where(valid, cost, dist)
