@@ -358,8 +358,9 @@ BUILDINGS = Suite("buildings", (
 """Issue 36's bar for following through buildings: 20 generated floor plans held out from
 tuning and training (:data:`BUILDING_SEEDS`), the built-in ``lab``, ``doorway`` and
 ``corridor``, a leader standing 20 s in a doorway, sensing noise (0.05 m, m/s) and the ROS
-realism; 13 robots at 0.55 m/s, 10 s after the leader's arrival. ``lost_followers`` (farther than 3 m from the leader at the
-end) is in its safety table. Run it for ``reynolds`` and ``reynolds@route``."""
+realism; 13 robots at 0.55 m/s, ending 10 s after the leader's arrival. ``lost_followers``
+(farther than 3 m from the leader at the end) is in its safety table. Run it for
+``reynolds`` and ``reynolds@route``."""
 
 SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION,
           "scenes": SCENES, "buildings": BUILDINGS, "deployment": DEPLOYMENT,

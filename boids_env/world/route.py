@@ -213,8 +213,9 @@ def sense_route(grid: RouteGrid, positions: FloatArray) -> tuple[FloatArray, Flo
     Returns:
         ``(direction (F, 2), length (F,), valid (F,))`` for the N−1 followers: the unit vector
         towards the farthest point in sight up to :data:`LOOKAHEAD` m along the route
-        (towards the leader itself within that distance) and the route's cost (m); where no route exists, ``valid`` is
-        False and direction and length are the straight line's. A follower on the leader
+        (towards the leader itself within that distance) and the route's cost (m); where
+        no route exists, ``valid`` is False and direction and length are the straight
+        line's. A follower on the leader
         gets a zero direction.
     """
     positions = np.asarray(positions, dtype=float)
