@@ -99,3 +99,20 @@ def test_the_route_block_is_opt_in_and_last():
 def test_route_cell_is_validated():
     with pytest.raises(ValueError, match="route_cell"):
         EnvConfig.from_kwargs(route_cell=0.0)
+
+
+@pytest.mark.parametrize("spec", ["lab", "eval/data/unseen_room.toml", "floorplan:3"])
+def test_maps_shapes_files_and_floor_plans_have_routes(spec):
+    from pathlib import Path
+
+    from boids_env.world.scenes import load_scene
+
+    root = Path(__file__).resolve().parents[2]
+    scene = load_scene(str(root / spec) if spec.endswith(".toml") else spec)
+    grid = route_grid(scene, RADIUS)
+    d = scene.defaults
+    points = np.array([d["start"], *d["waypoints"]])  # the leader's path: all one free space
+    direction, length, valid = sense_route(grid, points)
+    assert valid.all(), points[1:][~valid]
+    straight = np.linalg.norm(points[1:] - points[0], axis=1)
+    assert (length >= straight - 0.15).all()
