@@ -112,7 +112,7 @@ def test_maps_shapes_files_and_floor_plans_have_routes(spec):
     grid = route_grid(scene, RADIUS)
     d = scene.defaults
     points = np.array([d["start"], *d["waypoints"]])  # the leader's path: all one free space
-    direction, length, valid = sense_route(grid, points)
+    _, length, valid = sense_route(grid, points)
     assert valid.all(), points[1:][~valid]
     straight = np.linalg.norm(points[1:] - points[0], axis=1)
     assert (length >= straight - 0.15).all()
