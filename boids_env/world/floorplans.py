@@ -37,7 +37,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.sparse.csgraph import dijkstra
 
 from boids_env.world.layout import follower_cells
 from boids_env.world.route import RouteGrid, route_grid
@@ -353,6 +352,8 @@ def _plan(scene: Scene, grid: RouteGrid, goals: list[tuple[float, float]]
           ) -> list[tuple[float, float]] | None:
     """The shortest route through ``goals`` on ``grid``, simplified to waypoints whose legs
     keep :data:`ROUTE_CLEARANCE` from walls (None where a goal is unreachable)."""
+    from scipy.sparse.csgraph import dijkstra
+
     pts = np.asarray(goals, dtype=float)
     nodes = grid.cells_of(pts)
     if np.any(nodes < 0):

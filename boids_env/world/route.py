@@ -30,14 +30,15 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
-from scipy import ndimage
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from boids_env.world.scene import Scene
+
+if TYPE_CHECKING:  # scipy.sparse is imported when a grid is first built (1 s on a busy machine)
+    from scipy.sparse import csr_matrix
 
 FloatArray = npt.NDArray[np.float64]
 ROUTE_CELL = 0.1
@@ -97,6 +98,9 @@ MAX_CELLS = 4_000_000
 
 
 def _build(scene: Scene, radius: float, cell: float) -> RouteGrid:
+    from scipy import ndimage
+    from scipy.sparse import csr_matrix
+
     x0, y0, x1, y1 = scene.bounds
     w = max(1, math.ceil((x1 - x0) / cell))
     h = max(1, math.ceil((y1 - y0) / cell))
@@ -167,6 +171,8 @@ def route_field(grid: RouteGrid, leader: FloatArray) -> RouteField | None:
     if node in kept:
         kept.move_to_end(node)
         return kept[node]
+    from scipy.sparse.csgraph import dijkstra
+
     cost, pred = dijkstra(grid.graph, indices=node, return_predecessors=True)
     nxt = np.where(pred >= 0, pred, np.arange(len(pred)))
     field = RouteField(node, cost.astype(np.float32), nxt.astype(np.int32))
