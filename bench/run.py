@@ -88,6 +88,7 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
     external = env.config.scenario.path == "external"
 
     def run_dict() -> int:
+        _forget_routes(env)
         obs, _ = env.reset(seed=0)
         if external:
             env.set_leader_command([0.3, 0.0])
@@ -103,6 +104,7 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
         return steps
 
     def run_arrays() -> int:
+        _forget_routes(env)
         obs = env.reset_arrays(seed=0)
         if external:
             env.set_leader_command([0.3, 0.0])
@@ -115,6 +117,15 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
         return steps
 
     return run_dict if api == "dict" else run_arrays
+
+
+def _forget_routes(env: Any) -> None:
+    """Drops the route fields kept from an earlier round (route sensing's cost, not its
+    cache's)."""
+    if env.config.observation.route_sensing:
+        for value in env.config.scene._cache.values():
+            if hasattr(value, "graph"):  # a RouteGrid
+                value.__dict__.pop("_fields", None)
 
 
 def physics_loop(robots: int, steps: int) -> Callable[[], int]:
@@ -171,12 +182,15 @@ def _env_rows(sizes: list[int], repeats: int, record: Callable[..., None]
 
 
 SCENE_ROWS = (("env reynolds lab", "reynolds", {"scene": "lab"}),
+              ("env reynolds lab route", "reynolds", {"scene": "lab", "route_sensing": True}),
               ("env random lidar16", "random", {"lidar_rays": 16}),
               ("env random turtlebot3", "random", {"robot": "turtlebot3_burger"}),
               ("env random person crowd8", "random", {"leader": "person", "crowd": 8,
                                                       "path": "square"}))
 """The world beyond the study at 19 robots, each against the default with the same policy:
-the ``lab`` map scene (a 240 × 200 cell map) with the Reynolds policy avoiding its walls, a
+the ``lab`` map scene (a 240 × 200 cell map) with the Reynolds policy avoiding its walls, the
+same with route sensing (its fields computed afresh each round, as for a leader that never
+drives the same cells twice), a
 16-ray lidar, a TurtleBot3 flock (unicycles turned every physics substep), and a person
 walked by JuPedSim through the square's corners with 8 pedestrians (the person suite's
 crowd)."""
@@ -207,6 +221,9 @@ def _ratios(rows: list[dict[str, Any]]) -> dict[str, float]:
     for name, (new, base) in pairs.items():
         if (new, 19) in by_kind and (base, 19) in by_kind:
             ratios[name] = by_kind[(new, 19)] / by_kind[(base, 19)]
+    if ("env reynolds lab route", 19) in by_kind and ("env reynolds lab", 19) in by_kind:
+        ratios["route_over_lab_19"] = (by_kind[("env reynolds lab route", 19)]
+                                       / by_kind[("env reynolds lab", 19)])
     if ("env random", 19) in by_kind and ("mpe2 simple_spread", 18) in by_kind:
         ratios["env_random_19_over_mpe2_18"] = (by_kind[("env random", 19)]
                                                 / by_kind[("mpe2 simple_spread", 18)])

@@ -208,6 +208,14 @@ class ObservationConfig:
     command stays reachable. Opt-in, for learned policies (a zero action matches the leader's
     speed on any path and at any speed); a policy that outputs absolute velocities, like the
     Reynolds controller, needs it off."""
+    route_sensing: bool = False
+    """Append the ``route`` block (:mod:`boids_env.world.route`): per follower, the unit
+    direction of the shortest path to the leader through free space (walls inflated by the
+    robot radius, so a door narrower than a robot is no way through), the path's length (m)
+    and a valid flag (0 where no free path exists: the straight line's direction and
+    distance then). Opt-in; the ``route`` Reynolds preset follows it."""
+    route_cell: float = 0.1
+    """Cell size (m) of the route sensing's grid (finer: narrower doors resolved, slower)."""
 
     def __post_init__(self) -> None:
         _set(self, "horizon", _number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
@@ -233,6 +241,8 @@ class ObservationConfig:
         _set(self, "pedestrian_range", _number("pedestrian_range", self.pedestrian_range, 0.0,
                                                100, lo_open=True, unit="m"))
         _set(self, "relative_actions", _flag("relative_actions", self.relative_actions))
+        _set(self, "route_sensing", _flag("route_sensing", self.route_sensing))
+        _set(self, "route_cell", _number("route_cell", self.route_cell, 0.02, 1.0, unit="m"))
         from boids_env.world.robots import ACTIONS
 
         if self.action not in ACTIONS:
@@ -810,6 +820,16 @@ class ReynoldsParams:
     proxemics-aware variant, preset ``proxemic``: 1.2 m, Hall's personal zone): the leader
     term seeks the circle of this radius around the leader and pushes followers sideways out
     of its path ahead. 0: the study's leader term (seek the leader's centre)."""
+    follow_route: bool = False
+    """Seek the leader along its route through free space instead of the straight line (not in
+    the study; preset ``route``): the leader term becomes the route's direction × its length
+    from the observations' ``route`` block, so a follower behind a wall heads for the door.
+    The policy then asks the env for ``route_sensing``."""
+    robot_avoidance: float = 0.0
+    """Surface-to-surface distance (m) within which another robot counts as an obstacle
+    point of the obstacle rule (served first, its approach speed × ``obstacle_lookahead``
+    counted as nearer), so that a flock squeezed through a door or a corridor does not
+    touch (not in the study; preset ``route``: 0.15). 0: off."""
 
     def __post_init__(self) -> None:
         if self.obstacle_avoidance is not None:
@@ -822,6 +842,9 @@ class ReynoldsParams:
                                                  0.0, 60, unit="s"))
         _set(self, "personal_space", _number("personal_space", self.personal_space, 0.0, 5.0,
                                              unit="m"))
+        _set(self, "follow_route", _flag("follow_route", self.follow_route))
+        _set(self, "robot_avoidance", _number("robot_avoidance", self.robot_avoidance, 0.0, 5.0,
+                                              unit="m"))
         for name in ("separation_weight", "cohesion_weight", "alignment_weight",
                      "leader_weight"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 100))
@@ -845,6 +868,8 @@ PRESETS: dict[str, ReynoldsParams] = {
     "boids_ros": ReynoldsParams(horizon=0.75, desired_separation=0.45),
     # Beyond the study: the proxemics-aware leader term for following a person.
     "proxemic": ReynoldsParams(personal_space=1.2),
+    # Beyond the study: the leader sought along its route through doors (route sensing).
+    "route": ReynoldsParams(follow_route=True, robot_avoidance=0.15),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
 

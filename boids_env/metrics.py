@@ -390,6 +390,11 @@ def polarization(velocities: FloatArray) -> FloatArray:
     return np.divide(total, count, out=np.zeros_like(total), where=count > 0)
 
 
+LOST_DISTANCE = 3.0
+"""A follower farther than this from the leader at an episode's end (m) counts as lost
+(issue 36's bar: stranded behind a wall or left in another room)."""
+
+
 def leader_distance(positions: FloatArray) -> FloatArray:
     """Distance of every follower to the leader: (..., N, 2) -> (..., N-1)."""
     return np.linalg.norm(positions[..., 1:, :] - positions[..., :1, :], axis=-1)
@@ -429,8 +434,9 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         ``polarization``: the episode mean of |mean unit velocity| of the moving robots;
         ``mean_leader_distance``: the followers' mean distance to the leader (m);
         ``final_leader_distance_max``: the farthest any follower is from the leader at the
-        last sample (m: a follower left behind); ``no_sight``: each follower's fraction of
-        time without line of sight to the leader (a list); the safety metrics of
+        last sample (m: a follower left behind); ``lost_followers``: how many followers
+        end farther than :data:`LOST_DISTANCE` from the leader; ``no_sight``: each follower's
+        fraction of time without line of sight to the leader (a list); the safety metrics of
         :func:`safety_metrics` (``SAFETY_KEYS``); when the leader stood still for more than
         5 s, :func:`parked_metrics`; with a person leading, the proxemics of
         :func:`boids_env.proxemics.person_metrics`; with a crowd,
@@ -467,6 +473,7 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
     distances = leader_distance(positions)  # (T, N-1)
     out["mean_leader_distance"] = float(distances.mean())
     out["final_leader_distance_max"] = float(distances[-1].max()) if distances.size else 0.0
+    out["lost_followers"] = int((distances[-1] > LOST_DISTANCE).sum()) if distances.size else 0
     pos = np.asarray(positions, dtype=float)
     sight = line_of_sight(pos, scene)
     safety = safety_metrics(pos, robot_radius, scene.within(pos, robot_radius,

@@ -45,6 +45,8 @@ from scipy.spatial import cKDTree
 from boids_env import kernels
 from boids_env.vectors import times_matrix
 from boids_env.world import geometry as geo
+from boids_env.world.route import ROUTE_CELL, route_grid, sense_route
+from boids_env.world.route import SIZE as ROUTE_SIZE
 from boids_env.world.scene import Scene
 
 if TYPE_CHECKING:
@@ -60,13 +62,16 @@ of the study's square (the env passes its leader's own first direction)."""
 
 SLOT_SIZE = 5
 WALL_SIZE = 3
+ROUTE_REACH = 8.0
+"""The ``route`` block's length is clipped to this many times the scene's span (a route
+winds, and its wall penalty lengthens it)."""
 KD_TREE_MIN_ROBOTS = 96
 """From this group size on, neighbours are found with a KD-tree instead of all pairs
 (measured: all-pairs wins below about 100 robots)."""
 
 
 BLOCKS = ("own_velocity", "leader_position", "leader_velocity", "neighbours", "static", "lidar",
-          "pedestrians", "own_heading", "leader_heading", "neighbour_headings")
+          "pedestrians", "own_heading", "leader_heading", "neighbour_headings", "route")
 """The observation's blocks, in the order they appear (empty blocks are left out)."""
 
 
@@ -92,6 +97,11 @@ class ObservationLayout:
     headings: bool = False
     """Whether the robots have headings: the ``own_heading``, ``leader_heading`` and
     ``neighbour_headings`` blocks (unit vectors) follow the others."""
+    route: bool = False
+    """Whether the ``route`` block (route sensing, :mod:`boids_env.world.route`) comes last:
+    the unit direction of the follower's shortest free path to the leader (2), its length
+    (1, m) and a valid flag (1; 0 where no free path exists and the first three are the
+    straight line's)."""
 
     own_velocity = slice(0, 2)
     leader_position = slice(2, 4)
@@ -104,9 +114,10 @@ class ObservationLayout:
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
                 raise ValueError(f"ObservationLayout {name} must be a non-negative integer, "
                                  f"got {value!r}")
-        if not isinstance(self.headings, bool):
-            raise ValueError(f"ObservationLayout headings must be True or False, got "
-                             f"{self.headings!r}")
+        for name in ("headings", "route"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"ObservationLayout {name} must be True or False, got "
+                                 f"{getattr(self, name)!r}")
 
     @functools.cached_property  # the fields are frozen; the env reads these every step
     def blocks(self) -> tuple[tuple[str, int], ...]:
@@ -115,7 +126,8 @@ class ObservationLayout:
                  "neighbours": SLOT_SIZE * self.neighbours, "static": WALL_SIZE * self.static,
                  "lidar": self.lidar, "pedestrians": SLOT_SIZE * self.pedestrians,
                  "own_heading": 2 * self.headings, "leader_heading": 2 * self.headings,
-                 "neighbour_headings": 2 * self.neighbours * self.headings}
+                 "neighbour_headings": 2 * self.neighbours * self.headings,
+                 "route": ROUTE_SIZE * self.route}
         return tuple((name, sizes[name]) for name in BLOCKS if sizes[name])
 
     @classmethod
@@ -130,11 +142,11 @@ class ObservationLayout:
                              f"{blocks!r}") from None
         layout = cls(named.get("neighbours", 0) // SLOT_SIZE, named.get("static", 0) // WALL_SIZE,
                      named.get("lidar", 0), pedestrians=named.get("pedestrians", 0) // SLOT_SIZE,
-                     headings="own_heading" in named)
+                     headings="own_heading" in named, route="route" in named)
         if list(layout.blocks) != pairs:
             raise ValueError(f"not an observation layout: {pairs!r} (blocks, in order: "
                              f"{list(BLOCKS)}; neighbours and pedestrians 5 per slot, static 3 "
-                             f"per slot, neighbour headings 2 per slot)")
+                             f"per slot, neighbour headings 2 per slot, route 4)")
         return layout
 
     @functools.cached_property
@@ -248,6 +260,9 @@ class ObservationLayout:
                 if self.neighbours or name != "neighbour_headings":
                     low[self.block(name)] = -1.0
                     high[self.block(name)] = 1.0
+        if self.route:  # direction (2), length (1, bounded by ROUTE_REACH spans), flag (1)
+            low[self.block("route")] = [-1.0, -1.0, 0.0, 0.0]
+            high[self.block("route")] = [1.0, 1.0, ROUTE_REACH * reach, 1.0]
         return spaces.Box(low, high, dtype=np.float32)
 
     def neighbour_headings(self, obs: FloatArray) -> FloatArray:
@@ -356,6 +371,8 @@ class Sensors:
     """Pedestrians are discs of this radius for the lidar (m)."""
     pedestrian_range: float = 3.0
     """Pedestrian slots hold the pedestrians within this distance (m)."""
+    route_cell: float = ROUTE_CELL
+    """Cell size (m) of the route sensing's grid."""
 
 
 @dataclass(frozen=True)
@@ -500,6 +517,21 @@ def _sensed_blocks(obs: npt.NDArray[np.float32], layout: ObservationLayout,
             raise ValueError("pedestrian slots need their range (Sensors)")
         obs[:, layout.block("pedestrians")] = _pedestrian_block(
             positions[1:], layout.pedestrians, sensors, velocity_bound, frame, crowd)
+    if layout.route:
+        if sensors is None or sensors.scene is None:
+            raise ValueError("route sensing needs the scene (Sensors)")
+        obs[:, layout.block("route")] = _route_block(positions, sensors, frame)
+
+
+def _route_block(positions: FloatArray, sensors: Sensors,
+                 frame: npt.NDArray[np.float64] | None) -> FloatArray:
+    """(F, 4): each follower's route to the leader: direction in the frame, length (m, clipped
+    to the block's bound), valid flag."""
+    assert sensors.scene is not None
+    grid = route_grid(sensors.scene, sensors.robot_radius, sensors.route_cell)
+    direction, length, valid = sense_route(grid, positions)
+    bound = ROUTE_REACH * sensors.scene.span
+    return np.column_stack([_in_frame(direction, frame), np.minimum(length, bound), valid])
 
 
 def _in_frame(v: FloatArray, frame: npt.NDArray[np.float64] | None) -> FloatArray:
@@ -623,7 +655,7 @@ class Observer:
         sc = config.scenario
         self.sensors = Sensors(scene, static_range, obs.lidar_range, config.world.robot_radius,
                                None if sc.leader == "robot" else sc.person_radius,
-                               sc.person_radius, obs.pedestrian_range)
+                               sc.person_radius, obs.pedestrian_range, obs.route_cell)
         self.space = self.make_space()
         self.heading = INITIAL_HEADING
         self._rng: np.random.Generator | None = None
@@ -706,6 +738,8 @@ class Observer:
             walkers[..., 4] = 0.0
         if self.layout.headings and self.layout.neighbours:
             self.layout.neighbour_headings(noise)[...] *= valid[..., None]
+        if self.layout.route:
+            noise[:, self.layout.block("route").stop - 1] = 0.0  # the valid flag stays exact
         return noise
 
 
@@ -714,4 +748,5 @@ def layout_of(config: EnvConfig) -> ObservationLayout:
     obs = config.observation
     return ObservationLayout(obs.neighbours, config.static_slots, obs.lidar_rays,
                              pedestrians=config.pedestrian_slots,
-                             headings=config.world.drive == "unicycle")
+                             headings=config.world.drive == "unicycle",
+                             route=obs.route_sensing)

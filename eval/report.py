@@ -52,9 +52,9 @@ SUMMARY_METRICS = ("V_sep", "V_coh", "V_align", "V_align_unwrapped", "polarizati
 SAFETY_METRICS = ("touching_fraction", "mean_contact_pairs", "contacts_follower",
                   "contacts_leader", "wall_fraction", "min_clearance", "no_sight_fraction",
                   "mean_nn_distance", "min_distance", "leader_path_deviation",
-                  "leader_path_deviation_max")
+                  "leader_path_deviation_max", "lost_followers")
 """The safety table's columns: :data:`boids_env.metrics.SAFETY_KEYS` and the minimum
-distance."""
+distance, and the followers lost (farther than 3 m from the leader at the end)."""
 assert set(SAFETY_KEYS) <= set(SAFETY_METRICS)
 OWN_CSVS = ("stats_anova.csv", "stats_tukey.csv", "stats_tukey_study.csv",
             "policy_comparison.csv", "policy_verdicts.csv", "safety.csv", "blocks.csv",

@@ -12,6 +12,11 @@ position, v_j their velocity, v own velocity and clip(x, L) = x·L/|x| when |x| 
 - F = clip(Σ w·F, max_force);  command = clip(v + F / mass · dt, max_speed)
 - zero command for the first ``startup_time`` seconds after reset.
 
+Beyond the study, preset ``route`` (``follow_route``): the leader term aims along the route
+through free space (the observation's ``route`` block, :mod:`boids_env.world.route`),
+F_lead = d·L with d the route's unit direction and L its length, so a follower behind a wall
+seeks the door rather than the wall (the straight line where no free route exists).
+
 Beyond the study (on in any scene but the study's empty arena, see ``obstacle_avoidance``):
 - obstacle   F_obs = −max_force · Σ_m s_m · n_m over the static slots m (n_m the unit vector
   towards the surface point at distance d_m, u_m = max(0, v·n_m) the approach speed),
@@ -36,6 +41,7 @@ zone) replaces it with
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any
 
 import numpy as np
@@ -191,6 +197,43 @@ def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
     return command, weighted
 
 
+def robot_avoidance_force(slots: FloatArray, own_velocity: FloatArray, radius: float,
+                          p: ReynoldsParams) -> FloatArray:
+    """Other robots as obstacle points (F, 2): each neighbour's nearest surface point pushes
+    as an obstacle does, within ``robot_avoidance`` instead of ``obstacle_distance`` and with
+    the speed closing on it (``robot_avoidance``, preset ``route``).
+
+    Args:
+        slots: (F, K, 5) neighbour slots.
+        own_velocity: (F, 2) each follower's velocity.
+        radius: the robots' radius (m).
+        p: controller parameters.
+    """
+    rel, vel = slots[..., 0:2], slots[..., 2:4]
+    dist = np.sqrt(rel[..., 0] * rel[..., 0] + rel[..., 1] * rel[..., 1])
+    valid = (slots[..., 4] > 0.5) & (dist > 0)
+    surface = rel * (np.maximum(dist - 2 * radius, 1e-6) / np.where(dist > 0, dist, 1.0))[
+        ..., None]
+    closing = own_velocity[:, None, :] - vel
+    return obstacle_force(surface, valid, closing, _within(p, p.robot_avoidance))
+
+
+@functools.lru_cache(maxsize=16)
+def _within(p: ReynoldsParams, distance: float) -> ReynoldsParams:
+    """``p`` with ``obstacle_distance`` set to ``distance`` (cached: built once per policy)."""
+    return dataclasses.replace(p, obstacle_distance=distance)
+
+
+def route_leader_force(obs: FloatArray, layout: ObservationLayout) -> FloatArray:
+    """The leader term along the route (F, 2): the route block's direction × its length (the
+    straight line's where no free route exists, which the block already holds)."""
+    if not layout.route:
+        raise ValueError("follow_route needs the observations' route block: make the env with "
+                         "route_sensing=True (the policy's env_fields)")
+    route = obs[:, layout.block("route")]
+    return route[:, 0:2] * route[:, 2:3]
+
+
 def clip_norm_each(x: FloatArray, limits: FloatArray) -> FloatArray:
     """Rows of ``x`` (F, 2) scaled down to their own ``limits`` (F,) where longer."""
     norm = np.sqrt(x[..., 0] * x[..., 0] + x[..., 1] * x[..., 1])
@@ -257,7 +300,10 @@ class ReynoldsPolicy(BatchPolicy):
         self.layout = layout
         self.avoid = bool(self.params.obstacle_avoidance) and bool(layout and layout.static)
         self.pedestrian_radius = 0.22
+        self.robot_radius = 0.036
         self._steps = 0
+        if self.params.follow_route:  # the route preset reads the env's route sensing
+            self.env_fields = {"route_sensing": True}
 
     def bind(self, env: Any) -> None:
         """Reads ``env``'s observation layout, whether its scene is the study's arena (any
@@ -273,6 +319,7 @@ class ReynoldsPolicy(BatchPolicy):
         wanted = self.params.obstacle_avoidance
         self.avoid = bool(self.layout.static) and (auto if wanted is None else wanted)
         self.pedestrian_radius = config.scenario.person_radius
+        self.robot_radius = config.world.robot_radius
         self.params = bound_params(self.params, self._own, config)
 
     def reset(self, seed: int | None = None) -> None:
@@ -290,7 +337,8 @@ class ReynoldsPolicy(BatchPolicy):
         held = holding(self._steps * p.dt, p.startup_time)
         self._steps += 1
         people = bool(layout.pedestrians)
-        rules = (*RULES, OBSTACLE) if self.avoid or people else RULES
+        crowding = p.robot_avoidance > 0
+        rules = (*RULES, OBSTACLE) if self.avoid or people or crowding else RULES
         if held:
             self.forces = {name: np.zeros((len(obs), 2)) for name in rules}
             return np.zeros((len(obs), 2), dtype=np.float32)
@@ -303,6 +351,8 @@ class ReynoldsPolicy(BatchPolicy):
             forces["leader"] = proxemic_leader_force(obs[:, layout.leader_position],
                                                      obs[:, layout.leader_velocity],
                                                      p.personal_space)
+        if p.follow_route:
+            forces["leader"] = route_leader_force(obs, layout)
         if self.avoid or people:
             static = layout.static_slots(obs) if self.avoid else np.zeros((len(obs), 0, 3))
             points, valid, moving = static[..., :2], static[..., 2] > 0.5, own
@@ -315,5 +365,8 @@ class ReynoldsPolicy(BatchPolicy):
                 moving = np.concatenate([np.broadcast_to(own[:, None, :], static[..., :2].shape),
                                          relative], axis=1)
             forces[OBSTACLE] = obstacle_force(points, valid, moving, p)
+        if crowding:
+            push = robot_avoidance_force(layout.slots(obs), own, self.robot_radius, p)
+            forces[OBSTACLE] = forces[OBSTACLE] + push if OBSTACLE in forces else push
         command, self.forces = reynolds_command(forces, own, p)
         return command.astype(np.float32)

@@ -13,13 +13,15 @@ def _row(kind, robots, rate):
 def test_ratios_are_each_row_over_its_baseline():
     rows = [_row("physics", 19, 1000.0), _row("env random", 19, 400.0),
             _row("env random arrays", 19, 550.0), _row("env reynolds", 19, 300.0),
-            _row("env reynolds lab", 19, 180.0), _row("env random lidar16", 19, 200.0),
+            _row("env reynolds lab", 19, 180.0), _row("env reynolds lab route", 19, 150.0),
+            _row("env random lidar16", 19, 200.0),
             _row("env random turtlebot3", 19, 100.0), _row("env random person crowd8", 19, 50.0),
             _row("physics", 1000, 100.0), _row("env reynolds", 1000, 60.0),
             _row("env reynolds arrays", 1000, 80.0)]
     ratios = _ratios(rows)
     assert ratios == {
-        "lab_over_default_19": 0.6, "lidar16_over_default_19": 0.5,
+        "lab_over_default_19": 0.6, "route_over_default_19": 0.5, "route_over_lab_19": 150 / 180,
+        "lidar16_over_default_19": 0.5,
         "turtlebot3_over_default_19": 0.25, "person_crowd8_over_default_19": 0.125,
         "env_random_dict_19_over_physics_19": 0.4, "env_random_arrays_19_over_physics_19": 0.55,
         "env_reynolds_dict_1000_over_physics_1000": 0.6,

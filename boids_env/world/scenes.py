@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from boids_env.world import floorplans
 from boids_env.world import geometry as geo
 from boids_env.world.scene import STUDY_DEFAULTS, Scene
 
@@ -139,14 +140,19 @@ def load_scene(spec: str, arena_half_size: float = 5.0) -> Scene:
     Files are read once per content (cached on path, size and modification time).
     ``arena_half_size`` sizes the ``arena`` scene (the study's 5 m)."""
     if not isinstance(spec, str) or not spec:
-        raise ValueError(f"scene must be one of {sorted(BUILTIN)} or a .yaml map / .toml or "
-                         f".json shapes file, got {spec!r}")
+        raise ValueError(f"scene must be one of {sorted(BUILTIN)}, floorplan:SEED (a generated "
+                         f"floor plan) or a .yaml map / .toml or .json shapes file, got "
+                         f"{spec!r}")
     if spec in BUILTIN:
         return _builtin(spec, float(arena_half_size))
+    seed = floorplans.parse(spec)
+    if seed is not None:
+        return _floorplan(seed)
     path = Path(spec)
     if path.suffix.lower() not in FILE_SUFFIXES:
-        raise ValueError(f"scene must be one of {sorted(BUILTIN)} or a .yaml map / .toml or "
-                         f".json shapes file, got {spec!r}")
+        raise ValueError(f"scene must be one of {sorted(BUILTIN)}, floorplan:SEED (a generated "
+                         f"floor plan) or a .yaml map / .toml or .json shapes file, got "
+                         f"{spec!r}")
     try:
         stat = path.stat()
     except OSError as exc:
@@ -157,6 +163,11 @@ def load_scene(spec: str, arena_half_size: float = 5.0) -> Scene:
 @functools.lru_cache(maxsize=16)
 def _builtin(name: str, half_size: float) -> Scene:
     return arena(half_size) if name == "arena" else BUILTIN[name]()
+
+
+@functools.lru_cache(maxsize=64)
+def _floorplan(seed: int) -> Scene:
+    return floorplans.floorplan(seed)
 
 
 @functools.lru_cache(maxsize=16)
@@ -172,9 +183,13 @@ def _from_file(path: str, size: int, mtime: int, suffix: str) -> Scene:
 
 def scene_key(spec: str) -> str:
     """A file scene's resolved path (so configs made in another folder name the same file),
-    a built-in's name unchanged."""
+    a floor plan's name with its generator version (``floorplan@1:7``), a built-in's name
+    unchanged."""
     if spec in BUILTIN or not spec:
         return spec
+    seed = floorplans.parse(spec)
+    if seed is not None:
+        return floorplans.key(seed)
     return os.fspath(Path(spec).resolve())
 
 

@@ -298,6 +298,9 @@ BLOCK_MEANINGS = {
     "leader_heading": "the leader's heading as a unit vector (cos, sin)",
     "neighbour_headings": "the heading (cos, sin) of the robot in each neighbour slot; zeros "
                           "in an empty slot",
+    "route": "route sensing: unit direction (2) along the shortest free path to the leader, "
+             "the path's length (1, m), valid flag (1; 0: no free path, the straight line's "
+             "values); see the buildings how-to",
 }
 """What each block of :data:`boids_env.observations.BLOCKS` holds (a test checks that every
 block has one)."""
@@ -311,6 +314,7 @@ OBSERVATION_CASES: tuple[tuple[str, dict[str, Any]], ...] = (
     ("A range sensor", {"lidar_rays": 8}),
     ("A crowd (pedestrian slots)", {"crowd": 5}),
     ("Robots with a heading (unicycle)", {"robot": "turtlebot3_burger"}),
+    ("Route sensing", {"scene": "doorway", "route_sensing": True}),
 )
 """The configs whose layouts the observation page shows: the default and one per opt-in."""
 

@@ -258,3 +258,12 @@ def test_still_time_and_parked_metrics_on_hand_computed_samples():
                                  "parked_time": 3.0})
     commanded[4, 0] = [0.2, 0.0]  # the leader moved at sample 5: 3 still samples after it
     assert parked_metrics(positions, velocities, commanded, 1.0) == {}
+
+
+def test_lost_followers_counts_those_beyond_3_m_at_the_end():
+    # leader at the origin; followers at 1, 2.9, 3.1 and 4 m at the last sample (2.9 m before)
+    last = np.array([[0, 0], [1, 0], [0, 2.9], [-3.1, 0], [0, -4]], dtype=float)
+    positions = np.stack([last * 0.5, last])
+    still = np.zeros_like(positions)
+    out = metrics.episode_metrics(positions, still, still, MetricsConfig(), 0.1, 0.036)
+    assert out["lost_followers"] == 2, out["lost_followers"]

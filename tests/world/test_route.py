@@ -1,0 +1,118 @@
+"""Route sensing on hand-made scenes: the way to the leader goes through the door."""
+
+import math
+
+import numpy as np
+import pytest
+
+from boids_env.config import EnvConfig
+from boids_env.environment import BoidsEnv
+from boids_env.observations import ObservationLayout
+from boids_env.world.route import route_grid, sense_route
+from boids_env.world.scene import Scene
+
+RADIUS = 0.036
+
+
+def two_rooms(door: float) -> Scene:
+    """A 6 m × 4 m box cut at x = 0 by a wall (10 cm thick) with a door of clear width
+    ``door`` centred at y = 1."""
+    jamb = door / 2 + 0.05
+    return Scene("two rooms", box=(-3.0, -2.0, 3.0, 2.0),
+                 a=np.array([[0.0, 1.0 + jamb], [0.0, 1.0 - jamb]]),
+                 b=np.array([[0.0, 3.0], [0.0, -3.0]]), radius=np.full(2, 0.05))
+
+
+def test_the_direction_points_at_the_door_not_through_the_wall():
+    scene = two_rooms(1.0)
+    leader, follower = np.array([2.0, -1.0]), np.array([-2.0, -1.0])
+    direction, length, valid = sense_route(route_grid(scene, RADIUS),
+                                           np.stack([leader, follower]))
+    assert valid.tolist() == [True]
+    to_door = np.array([0.0, 1.0]) - follower
+    cosine = float(direction[0] @ to_door / np.linalg.norm(to_door))
+    # straight at the leader would be (1, 0): 45° off the door's bearing (cos 0.707)
+    assert cosine > 0.95, (direction, cosine)
+    assert abs(np.linalg.norm(direction[0]) - 1.0) < 1e-12
+    via_door = 2 * math.hypot(2.0, 2.0)  # 5.66 m, against 4 m straight through the wall
+    assert via_door - 0.1 <= length[0] <= 3 * via_door, length
+
+
+def test_a_door_narrower_than_a_robot_is_no_way_through():
+    scene = two_rooms(0.06)  # narrower than the robot's 0.072 m diameter
+    leader, follower = np.array([2.0, -1.0]), np.array([-2.0, -1.0])
+    direction, length, valid = sense_route(route_grid(scene, RADIUS),
+                                           np.stack([leader, follower]))
+    # stated fallback: valid flag 0, the straight line's direction and distance
+    assert valid.tolist() == [False]
+    np.testing.assert_allclose(direction[0], [1.0, 0.0])
+    np.testing.assert_allclose(length, [4.0])
+
+
+
+def test_a_door_passes_a_robot_narrower_than_it_and_stops_a_wider_one():
+    scene = two_rooms(0.3)
+    pos = np.array([[2.0, -1.0], [-2.0, -1.0]])
+    assert sense_route(route_grid(scene, 0.08), pos)[2].tolist() == [True]  # 0.16 m wide
+    assert sense_route(route_grid(scene, 0.2), pos)[2].tolist() == [False]  # 0.4 m wide
+
+
+def test_in_the_open_the_route_is_the_straight_line():
+    scene = two_rooms(1.0)
+    pos = np.array([[-1.0, -1.0], [-2.5, -1.0], [-1.0, 0.2], [-1.3, -1.3]])
+    direction, length, valid = sense_route(route_grid(scene, RADIUS), pos)
+    straight = pos[0] - pos[1:]
+    cos = (direction * straight).sum(1) / np.linalg.norm(straight, axis=1)
+    assert valid.all() and (cos > 0.97).all(), cos
+    assert (length >= np.linalg.norm(straight, axis=1) - 0.15).all(), length
+
+
+def test_a_follower_touching_a_wall_reads_its_nearest_free_cell():
+    scene = two_rooms(1.0)
+    pos = np.array([[2.0, -1.0], [-0.08, -1.0]])  # 3 cm from the wall's face
+    direction, _, valid = sense_route(route_grid(scene, RADIUS), pos)
+    assert valid.tolist() == [True]
+    # off the wall (−x) and up towards the door (+y), never into the wall (+x, the leader)
+    assert direction[0, 0] < 0 and direction[0, 1] > 0.5, direction
+
+
+def test_the_grid_is_built_once_per_scene_and_radius():
+    scene = two_rooms(1.0)
+    assert route_grid(scene, RADIUS) is route_grid(scene, RADIUS)
+    assert route_grid(scene, RADIUS) is not route_grid(scene, 0.1)
+
+
+def test_the_route_block_is_opt_in_and_last():
+    plain = EnvConfig.from_kwargs(scene="doorway")
+    routed = plain.replace(route_sensing=True)
+    env = BoidsEnv(routed)
+    assert "route" not in [b for b, _ in BoidsEnv(plain).layout.blocks]
+    assert env.layout.blocks[-1] == ("route", 4)
+    assert ObservationLayout.from_blocks(env.layout.blocks) == env.layout
+    obs, _ = env.reset(seed=0)
+    for agent, o in obs.items():
+        assert env.observation_space(agent).contains(o), agent
+        route = o[env.layout.block("route")]
+        assert route[3] == 1.0 and abs(np.hypot(route[0], route[1]) - 1) < 1e-5, route
+
+
+def test_route_cell_is_validated():
+    with pytest.raises(ValueError, match="route_cell"):
+        EnvConfig.from_kwargs(route_cell=0.0)
+
+
+@pytest.mark.parametrize("spec", ["lab", "eval/data/unseen_room.toml", "floorplan:3"])
+def test_maps_shapes_files_and_floor_plans_have_routes(spec):
+    from pathlib import Path
+
+    from boids_env.world.scenes import load_scene
+
+    root = Path(__file__).resolve().parents[2]
+    scene = load_scene(str(root / spec) if spec.endswith(".toml") else spec)
+    grid = route_grid(scene, RADIUS)
+    d = scene.defaults
+    points = np.array([d["start"], *d["waypoints"]])  # the leader's path: all one free space
+    _, length, valid = sense_route(grid, points)
+    assert valid.all(), points[1:][~valid]
+    straight = np.linalg.norm(points[1:] - points[0], axis=1)
+    assert (length >= straight - 0.15).all()
