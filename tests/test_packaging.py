@@ -1,6 +1,7 @@
 """The wheel, installed outside the checkout, works from a folder holding a user's own
 ``train.py`` and ``eval.py`` (which must never be imported in place of ours)."""
 
+import functools
 import json
 import os
 import site
@@ -146,12 +147,19 @@ def _third_party(path: Path) -> set[str]:
     return {n for n in found if n not in sys.stdlib_module_names and n != "boids_env"} - ROS1
 
 
-def _distributions(module: str) -> set[str]:
+@functools.cache
+def _packages_distributions() -> dict[str, list[str]]:
+    """importlib's map of top-level modules to distributions, built once (it reads every
+    installed distribution's file list)."""
     from importlib import metadata
 
+    return metadata.packages_distributions()
+
+
+def _distributions(module: str) -> set[str]:
     from packaging.utils import canonicalize_name
 
-    dists = metadata.packages_distributions().get(module)
+    dists = _packages_distributions().get(module)
     assert dists, f"{module} is imported by the package but installed by no distribution here"
     return {canonicalize_name(d) for d in dists}
 
