@@ -96,8 +96,8 @@ def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) ->
                    help="m/s (0.55; with --robot, 1.1 x its top speed)")
     p.add_argument("--scene", default=None,
                    help="arena (the study's, default), small_room, doorway, corridor, pillars, "
-                   "lab, or a shapes file (.toml/.json); sets the scene's leader path and start "
-                   "(boids scenes lists them)")
+                   "lab, a generated floor plan floorplan:SEED, or a shapes file (.toml/.json); "
+                   "sets the scene's leader path and start (boids scenes lists them)")
     p.add_argument("--map", default=None, metavar="YAML",
                    help="a ROS map_server map (YAML + PGM/PNG) as the scene")
     p.add_argument("--path", choices=PATHS, default=None, help=path_help)
