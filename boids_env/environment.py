@@ -508,7 +508,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     def _observe(self) -> npt.NDArray[np.float32]:
         world = self._world
         assert world is not None
-        crowd = Crowd(world.pedestrian_positions, world.pedestrian_velocities) if world.p else None
+        crowd = self.crowd
         headings = world.heading_vectors
         velocities = world.velocities
         if headings is not None:  # what a controller reads from odometry (REP 105)
@@ -554,6 +554,13 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         out["steps"] = world.steps
         out["duration"] = world.time
         return out
+
+    @property
+    def crowd(self) -> Crowd | None:
+        """The crowd's pedestrians now (positions and velocities, world frame) as the
+        followers observe them, or None without a crowd."""
+        world = self._require_world()
+        return Crowd(world.pedestrian_positions, world.pedestrian_velocities) if world.p else None
 
     @property
     def leader(self) -> Leader:

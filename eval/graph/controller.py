@@ -20,7 +20,7 @@ import numpy as np
 from boids_env.config import EnvConfig
 from boids_env.eval.episode import bind_policy, env_fields_for
 from boids_env.eval.ros.protocol import EpisodeInfo, Tick, finite_commands, is_continuation
-from boids_env.observations import INITIAL_HEADING, Observer
+from boids_env.observations import INITIAL_HEADING, Crowd, Observer
 from boids_env.policies.base import Policy
 from boids_env.policies.registry import load_policy, split_preset
 from boids_env.vectors import clip_speed
@@ -113,6 +113,8 @@ class ControllerCore:
         in-process is applied here, and (v, ω) goes out on cmd_vel."""
         self.stale: StaleObservations | None = None
         self.robots = self.config.scenario.robots
+        self.pedestrians = self.config.scenario.crowd
+        """The crowd's size: each tick waits for every pedestrian's odometry too."""
         self.dt = self.config.world.dt
         self.agents = [f"follower_{i}" for i in range(1, self.robots)]
         self.episode: EpisodeInfo | None = None
@@ -174,7 +176,10 @@ class ControllerCore:
             assert tick.quaternions is not None
             headings = quaternion_headings(tick.quaternions[:, 0], tick.quaternions[:, 1])
             velocities = to_world(velocities, headings)
-        obs = self.observer(tick.positions, velocities, headings=headings)
+        crowd = None
+        if tick.crowd_positions is not None and tick.crowd_velocities is not None:
+            crowd = Crowd(tick.crowd_positions, tick.crowd_velocities)
+        obs = self.observer(tick.positions, velocities, crowd, headings)
         if self.stale is not None:
             obs = self.stale(obs)
         actions = self.policy.act(dict(zip(self.agents, obs, strict=True)))

@@ -35,7 +35,7 @@ from boids_env.eval.ros.protocol import (
 )
 from boids_env.eval.run import metrics_table
 from boids_env.files import atomic_path, write_json
-from boids_env.observations import Observer, lidar_scans
+from boids_env.observations import Crowd, Observer, lidar_scans
 from boids_env.recording import Recorder, Recording
 from boids_env.world.robots import quaternion_headings, to_body
 
@@ -125,11 +125,14 @@ class SimFrame:
     """(N,) rad/s (zero for robots without a heading)."""
     leader_command: tuple[float, float, float] | None
     """The scripted leader's next command as its ``cmd_vel`` carries it (linear.x, linear.y,
-    angular.z), or None (an external leader is commanded from outside)."""
+    angular.z), or None (an external leader is commanded from outside; a walking person
+    takes no command)."""
     scans: FloatArray | None = None
     """(F, R) each follower's lidar ranges (m) in its own frame when the config has a lidar
     (``lidar_rays``), else None."""
     lidar_range: float = 0.0
+    crowd: Crowd | None = None
+    """The crowd's pedestrians (positions and world-frame velocities), or None."""
 
 
 class SimTransport(Protocol):
@@ -170,16 +173,15 @@ class SimCore:
         self.env = BoidsEnv(**dict(options.env_fields))
         config = self.config = self.env.config
         sc = config.scenario
-        if (sc.leader == "person" and sc.path != "external") or sc.crowd:
-            # the sim publishes the leader's next command ahead of stepping, which a
-            # pedestrian model only knows once it has stepped
-            raise ValueError(f"{label}: a walking person (leader='person' with a path) "
-                             "and crowds are not supported; use leader='trajectory' (a "
-                             "recorded walk) or --path external with --leader person")
         self.robots = sc.robots
         self.dt = config.world.dt
         self.agents = list(self.env.possible_agents)
         self.external = sc.path == "external"
+        self.person = sc.leader == "person" and not self.external
+        """A person walked by the pedestrian model leads: it takes no ``cmd_vel`` (its next
+        step is known only once the model has stepped)."""
+        self.pedestrians = sc.crowd
+        """The crowd's size: the pedestrians published with every tick."""
         self.heading = config.world.drive == "unicycle"
         if self.heading:
             # cmd_vel carries (v, ω) in the robot's frame: the world takes it as it is
@@ -230,7 +232,7 @@ class SimCore:
             velocities = to_body(velocities, quaternion_headings(quaternions[:, 0],
                                                                  quaternions[:, 1]))
         leader: tuple[float, float, float] | None = None
-        if not self.external:
+        if not (self.external or self.person):
             # The command the scripted leader will execute next, computed on a copy (the
             # env computes the same one, from the same state, when it steps): published with
             # the odometry, as the study's leader controller answered its own odometry.
@@ -248,7 +250,8 @@ class SimCore:
             scans = lidar_scans(snap.positions, self.config.observation.lidar_rays,
                                 self._sensors, headings)
         return SimFrame(tick, stamp_ns(start, tick, self.dt), snap.positions, velocities,
-                        quaternions, turn, leader, scans, self.config.observation.lidar_range)
+                        quaternions, turn, leader, scans, self.config.observation.lidar_range,
+                        self.env.crowd)
 
     def _lockstep_commands(self, tick: int, transport: SimTransport) -> np.ndarray | None:
         """Waits for every follower's answer to ``tick``; None if the node shut down."""

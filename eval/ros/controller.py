@@ -47,6 +47,7 @@ from boids_env.eval.ros.protocol import (
     TickAssembler,
     cmd_topic,
     odom_topic,
+    pedestrian_topic,
 )
 
 __all__ = ["SYNC_MODES", "ControllerNode", "ControllerOptions", "controller_policy",
@@ -106,13 +107,18 @@ class ControllerNode:
                 print(f"{self.name}: from the parameter server: "
                       + ", ".join(f"{k} = {v:g}" for k, v in differ.items())
                       + f" (rosparam delete {self.name} to start from the preset)", flush=True)
-        self.assembler = TickAssembler(self.robots)
+        self.assembler = TickAssembler(self.robots, core.pedestrians)
         self.ticks: queue.Queue[Tick] = queue.Queue()
         self._source: str | None = None
         self._deaf: set[str] = set()
         self.odom_subs = [rospy.Subscriber(odom_topic(k), Odometry, self._on_odom,
                                            callback_args=k, queue_size=QUEUE_SIZE,
                                            tcp_nodelay=True) for k in range(self.robots)]
+        # the crowd's pedestrians: the assembler's sources after the robots
+        self.odom_subs += [rospy.Subscriber(pedestrian_topic(k), Odometry, self._on_odom,
+                                            callback_args=self.robots + k,
+                                            queue_size=QUEUE_SIZE, tcp_nodelay=True)
+                           for k in range(core.pedestrians)]
 
     # ---------------------------------------------------------------------------- config
     def _base_config(self) -> EnvConfig:

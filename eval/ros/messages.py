@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.eval.ros.protocol import MAP_FRAME, robot_frame
+from boids_env.eval.ros.protocol import MAP_FRAME, pedestrian_frame, robot_frame
 from boids_env.eval.ros.rospy_path import import_rospy
 
 FloatArray = npt.NDArray[np.float64]
@@ -50,6 +50,7 @@ class Messages:
         self.TFMessage, self.TransformStamped = TFMessage, TransformStamped
         self.Marker, self.MarkerArray, self.Point = Marker, MarkerArray, Point
         self._odom: dict[int, Any] = {}
+        self._walkers: dict[int, Any] = {}
         self._transforms: dict[int, Any] = {}
         self._markers: dict[tuple[str, int], Any] = {}
 
@@ -98,6 +99,23 @@ class Messages:
             msg.pose.pose.orientation.z = float(quaternion[0])
             msg.pose.pose.orientation.w = float(quaternion[1])
             msg.twist.twist.angular.z = float(turn_rate)
+        msg.twist.twist.linear.x = float(velocity[0])
+        msg.twist.twist.linear.y = float(velocity[1])
+        return msg
+
+    def pedestrian_odometry(self, pedestrian: int, stamp: Any, position: FloatArray,
+                            velocity: FloatArray) -> Any:
+        """Pedestrian ``pedestrian``'s Odometry: position and velocity in the map frame,
+        identity orientation, child frame ``pedestrian_k``."""
+        msg = self._walkers.get(pedestrian)
+        if msg is None:
+            msg = self._walkers[pedestrian] = self.Odometry()
+            msg.header.frame_id = MAP_FRAME
+            msg.child_frame_id = pedestrian_frame(pedestrian)
+            msg.pose.pose.orientation.w = 1.0
+        msg.header.stamp = stamp
+        msg.pose.pose.position.x = float(position[0])
+        msg.pose.pose.position.y = float(position[1])
         msg.twist.twist.linear.x = float(velocity[0])
         msg.twist.twist.linear.y = float(velocity[1])
         return msg

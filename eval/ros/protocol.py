@@ -74,6 +74,17 @@ def odom_topic(robot: int) -> str:
     return f"/robot_{robot}/odom"
 
 
+def pedestrian_topic(pedestrian: int) -> str:
+    """``/pedestrian_k/odom``: pedestrian k of the crowd (nav_msgs/Odometry in ``map``, its
+    velocity in the twist), what a people tracker reports and the followers observe."""
+    return f"/pedestrian_{pedestrian}/odom"
+
+
+def pedestrian_frame(pedestrian: int) -> str:
+    """Pedestrian k's frame (its odometry's child frame), ``pedestrian_k``."""
+    return f"pedestrian_{pedestrian}"
+
+
 def cmd_topic(robot: int) -> str:
     """``/robot_k/cmd_vel``."""
     return f"/robot_{robot}/cmd_vel"
@@ -235,6 +246,10 @@ class Tick:
     study's robots, each robot's own frame for robots with a heading (REP 105)."""
     quaternions: FloatArray | None = None
     """(N, 2) the orientation's (z, w) (rotations about z)."""
+    crowd_positions: FloatArray | None = None
+    """(P, 2) m, the crowd's pedestrians (None without a crowd)."""
+    crowd_velocities: FloatArray | None = None
+    """(P, 2) m/s, world frame."""
 
 
 class TickAssembler:
@@ -244,12 +259,20 @@ class TickAssembler:
     Ticks are returned at most once and in increasing stamp order; a stamp not newer than the
     last one returned is dropped, unless a robot's own stamps go back (its source restarted),
     which starts over.
+
+    With ``pedestrians`` (a crowd of P), sources ``robots … robots + P - 1`` are the
+    pedestrians' odometry: a tick also waits for them, and carries them apart
+    (:attr:`Tick.crowd_positions`).
     """
 
-    def __init__(self, robots: int) -> None:
+    def __init__(self, robots: int, pedestrians: int = 0) -> None:
         if robots < 2:
             raise ValueError(f"robots must be >= 2 (a leader and a follower), got {robots}")
+        if isinstance(pedestrians, bool) or not isinstance(pedestrians, int) or pedestrians < 0:
+            raise ValueError(f"pedestrians must be a non-negative integer, got {pedestrians!r}")
         self.robots = robots
+        self.pedestrians = pedestrians
+        self.sources = robots + pedestrians
         self._lock = threading.Lock()
         self._pending: dict[int, dict[int, tuple[float, ...]]] = {}
         self._last: int | None = None
@@ -280,25 +303,34 @@ class TickAssembler:
                 return None  # a tick already returned, or one passed over
             entry = self._pending.setdefault(stamp, {})
             entry[robot] = (x, y, vx, vy, qz, qw)
-            if len(entry) < self.robots:
+            if len(entry) < self.sources:
                 return None
             del self._pending[stamp]
             # older incomplete stamps can never complete in order: drop them
             self._pending = {k: v for k, v in self._pending.items() if k > stamp}
             self._last = stamp
-            rows = np.array([entry[k] for k in range(self.robots)], dtype=np.float64)
-            return Tick(stamp, rows[:, :2], rows[:, 2:4], rows[:, 4:6])
+            rows = np.array([entry[k] for k in range(self.sources)], dtype=np.float64)
+            return self._tick(stamp, rows)
 
     def snapshot(self) -> Tick | None:
         """Every robot's latest odometry as one tick (stamped with the newest stamp), or None
         until every robot has reported once: for sources whose robots are not stamped
         together (``--sync rate``)."""
         with self._lock:
-            if len(self.latest) < self.robots:
+            if len(self.latest) < self.sources:
                 return None
-            rows = np.array([self.latest[k][1:] for k in range(self.robots)], dtype=np.float64)
-            stamp = max(self.latest[k][0] for k in range(self.robots))
-            return Tick(stamp, rows[:, :2], rows[:, 2:4], rows[:, 4:6])
+            rows = np.array([self.latest[k][1:] for k in range(self.sources)], dtype=np.float64)
+            stamp = max(self.latest[k][0] for k in range(self.sources))
+            return self._tick(stamp, rows)
+
+    def _tick(self, stamp: int, rows: FloatArray) -> Tick:
+        """A tick of rows (x, y, vx, vy, qz, qw): the robots', then the pedestrians'."""
+        n = self.robots
+        robots = rows[:n]
+        if not self.pedestrians:
+            return Tick(stamp, robots[:, :2], robots[:, 2:4], robots[:, 4:6])
+        return Tick(stamp, robots[:, :2], robots[:, 2:4], robots[:, 4:6],
+                    rows[n:, :2], rows[n:, 2:4])
 
 
 def is_continuation(previous_ns: int | None, stamp_ns: int, dt: float) -> bool:

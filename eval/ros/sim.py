@@ -5,7 +5,10 @@ Publishes the scene as ``map_server`` does (``/map``, ``/map_metadata``, latched
 for every robot k, ``/robot_k/odom`` (latched) once per control period, ``/tf``
 (``map`` → ``robot_k``), ``/clock`` (sets ``/use_sim_time``), and the scripted leader's command
 on ``/robot_0/cmd_vel`` (as the study's leader controller did; with ``--path external`` the
-sim subscribes to it instead, for a teleop). Subscribes to every follower's
+sim subscribes to it instead, for a teleop; a person walked by the pedestrian model takes
+none). With a crowd (``--crowd N``), every pedestrian's ``/pedestrian_k/odom`` (latched,
+nav_msgs/Odometry in ``map``, child ``pedestrian_k``, its velocity in the twist) with each
+tick: what the followers observe. Subscribes to every follower's
 ``/robot_k/cmd_vel``. See :mod:`boids_env.eval.ros.protocol` for the timing (lockstep or real
 time, the 0.5 s command timeout, stamps and episodes).
 
@@ -38,6 +41,7 @@ from boids_env.eval.ros.protocol import (
     cmd_topic,
     config_json,
     odom_topic,
+    pedestrian_topic,
     period_ns,
 )
 
@@ -90,11 +94,14 @@ class SimNode:
         self.tf_pub = publisher(rospy, "/tf", TFMessage)
         self.odom_pubs = [publisher(rospy, odom_topic(k), Odometry, latch=True)
                           for k in range(self.robots)]
+        # the crowd's pedestrians, which the followers observe (a tick waits for them)
+        self.pedestrian_pubs = [publisher(rospy, pedestrian_topic(k), Odometry, latch=True)
+                                for k in range(core.pedestrians)]
         self.leader_pub = None
         if self.external:
             self.leader_sub = rospy.Subscriber(cmd_topic(0), Twist, self._on_leader,
                                                queue_size=QUEUE_SIZE, tcp_nodelay=True)
-        else:
+        elif not core.person:  # a walking person takes no cmd_vel
             self.leader_pub = publisher(rospy, cmd_topic(0), Twist)
         self.cmd_subs = [rospy.Subscriber(cmd_topic(k), Twist, self._on_command,
                                           callback_args=k - 1, queue_size=QUEUE_SIZE,
@@ -129,12 +136,13 @@ class SimNode:
                                + (f" (+{len(idle) - 3})" if len(idle) > 3 else ""))
             else:  # the controllers must also receive every odometry from tick 0 on
                 for node in self.controllers():
-                    deaf = [p.resolved_name for p in self.odom_pubs
+                    deaf = [p.resolved_name for p in self.odom_pubs + self.pedestrian_pubs
                             if node not in {c.endpoint_id for c in p.impl.connections}]
                     if deaf:
                         missing.append(f"{node} to subscribe to {len(deaf)} odometry topics")
         if self.options.wait_for:
             wanted = {odom_topic(k) for k in range(self.robots)}
+            wanted |= {pedestrian_topic(k) for k in range(self.core.pedestrians)}
             wanted |= {cmd_topic(k) for k in range(0 if self.leader_pub else 1, self.robots)}
             wanted |= {"/clock", "/tf"}
             links = self._outbound_links(wanted)
@@ -208,14 +216,18 @@ class SimNode:
         self.rospy.set_param(EPISODE_PARAM, info.to_json())
 
     def publish(self, frame: SimFrame) -> None:
-        """Publishes one tick: ``/clock``, every ``/robot_k/odom``, ``/tf`` and the scripted
-        leader's ``cmd_vel``."""
+        """Publishes one tick: ``/clock``, every ``/robot_k/odom``, every
+        ``/pedestrian_k/odom`` of a crowd, ``/tf`` and the scripted leader's ``cmd_vel``."""
         stamp = self.msgs.time(frame.stamp_ns)
         self.clock_pub.publish(self.msgs.Clock(clock=stamp))
         q = frame.quaternions
         for k, pub in enumerate(self.odom_pubs):
             pub.publish(self.msgs.odometry(k, stamp, frame.positions[k], frame.velocities[k],
                                            None if q is None else q[k], frame.turn_rates[k]))
+        if frame.crowd is not None:
+            for k, pub in enumerate(self.pedestrian_pubs):
+                pub.publish(self.msgs.pedestrian_odometry(
+                    k, stamp, frame.crowd.positions[k], frame.crowd.velocities[k]))
         self.tf_pub.publish(self.msgs.transforms(stamp, frame.positions, q))
         if self.leader_pub is not None and frame.leader_command is not None:
             self.leader_pub.publish(self.msgs.twist(*frame.leader_command))

@@ -28,6 +28,7 @@ from boids_env.eval.ros.protocol import (
     base_frame,
     cmd_topic,
     odom_topic,
+    pedestrian_topic,
 )
 from boids_env.eval.ros2.options import TWIST, Ros2Options
 from boids_env.eval.ros2.sim import MARKERS, ODOM, STRING, stop_on_signals
@@ -66,11 +67,14 @@ class Ros2Controller:
                              for k in range(1, robots)]
             self.marker_pub = (node.publisher(f"{self.name}/markers", MARKERS)
                                if options.markers and hasattr(policy, "forces") else None)
-            self.assembler = TickAssembler(robots)
+            self.assembler = TickAssembler(robots, self.core.pedestrians)
             self.ticks: queue.Queue[Tick] = queue.Queue()
             for k in range(robots):
                 node.subscribe(odom_topic(k), ODOM,
                                lambda msg, robot=k: self._on_odom(msg, robot))
+            for k in range(self.core.pedestrians):  # the crowd: sources after the robots
+                node.subscribe(pedestrian_topic(k), ODOM,
+                               lambda msg, source=robots + k: self._on_odom(msg, source))
         except BaseException:
             node.close()
             raise

@@ -7,13 +7,18 @@ and ``/tf_static`` (``map`` → ``robot_k/odom``, latched): REP 105's tree, as a
 odometry gives it; ``/clock``; the scene as ``/map`` (nav_msgs/OccupancyGrid, latched) and
 ``/markers/obstacles``; the robots as ``/markers/robots``; with a lidar
 (``--set lidar_rays=N``) every follower's ``/robot_k/scan`` (sensor_msgs/LaserScan in its
-``base_footprint`` frame); the scripted leader's
-``/robot_0/cmd_vel``; the config and each episode on ``/boids/env_config`` and
-``/boids/episode`` (latched std_msgs/String, where ROS 1 used the parameter server).
+``base_footprint`` frame); with a person leading (``--leader person`` or ``trajectory``)
+``/person/odom`` and, with a crowd (``--set crowd=N``), every pedestrian's
+``/pedestrian_k/odom`` (nav_msgs/Odometry in ``map``, child ``pedestrian_k``, the velocity
+in the twist: what the followers observe), people drawn on ``/markers/people``; the scripted
+leader's ``/robot_0/cmd_vel`` (a walking person takes none); the config and each episode
+on ``/boids/env_config`` and ``/boids/episode`` (latched std_msgs/String, where ROS 1 used
+the parameter server).
 Subscribes to every follower's ``/robot_k/cmd_vel`` (Twist, or TwistStamped).
 
 Tick 0 waits until the graph's liveliness tokens show a publisher on every follower's
-``cmd_vel`` and, from the same nodes, a subscription to every ``/robot_k/odom`` (and, for
+``cmd_vel`` and, from the same nodes, a subscription to every ``/robot_k/odom`` and
+``/pedestrian_k/odom`` (and, for
 ``--wait-for NODE``, that node's subscriptions to the odometry, ``/tf`` and ``/clock``).
 """
 
@@ -40,10 +45,13 @@ from boids_env.eval.ros.protocol import (
     config_json,
     odom_frame,
     odom_topic,
+    pedestrian_frame,
+    pedestrian_topic,
     period_ns,
 )
 from boids_env.eval.ros2.options import TWIST, Ros2Options
 from boids_env.eval.ros2.wire import LATCHED
+from boids_env.rosbag import PEOPLE_TOPIC, PERSON_TOPIC
 
 WARN_EVERY = 5.0
 POLL = 0.01
@@ -125,13 +133,19 @@ class Ros2Sim:
         self.odom_pubs = [node.publisher(odom_topic(k), ODOM) for k in range(robots)]
         self.scan_pubs = [node.publisher(scan_topic(k), SCAN) for k in range(1, robots)] \
             if core.config.observation.lidar_rays > 0 else []
+        self.pedestrian_pubs = [node.publisher(pedestrian_topic(k), ODOM)
+                                for k in range(core.pedestrians)]
+        person = core.config.scenario.leader != "robot"
+        self.person_pub = node.publisher(PERSON_TOPIC, ODOM) if person else None
+        self.people_pub = (node.publisher(PEOPLE_TOPIC, MARKERS)
+                           if person or core.pedestrians else None)
         self._parents = [odom_frame(k) for k in range(robots)]
         self._children = [base_frame(k) for k in range(robots)]
         cmd_type = ros2.cmd_type
         self.leader_pub = None
         if core.external:
             node.subscribe(cmd_topic(0), cmd_type, self._on_leader)
-        else:
+        elif not core.person:
             self.leader_pub = node.publisher(cmd_topic(0), cmd_type)
         for k in range(1, robots):
             node.subscribe(cmd_topic(k), cmd_type,
@@ -161,6 +175,7 @@ class Ros2Sim:
         """What tick 0 still waits for (empty when everything is connected)."""
         core, node, missing = self.core, self.node, []
         odoms = [odom_topic(k) for k in range(core.robots)]
+        odoms += [pedestrian_topic(k) for k in range(core.pedestrians)]
         if core.options.lockstep or core.options.wait_controller:
             idle = [cmd_topic(k) for k in range(1, core.robots)
                     if not node.endpoints_on(cmd_topic(k), "MP")]
@@ -221,6 +236,7 @@ class Ros2Sim:
                                    quaternion=None if q is None else (q[k, 0], q[k, 1])))
         self.tf_pub.publish(m.transforms(ns, 0, self._parents, self._children,
                                          frame.positions, q))
+        self._publish_people(frame)
         if self.leader_pub is not None and frame.leader_command is not None:
             twist = m.twist(*frame.leader_command)
             self.leader_pub.publish(twist if self.ros2.cmd_type == TWIST else
@@ -236,6 +252,23 @@ class Ros2Sim:
             headings = None if q is None else np.stack([np.cos(yaws), np.sin(yaws)], axis=-1)
             self.view.show(frame.tick, frame.positions, headings,
                            self.core.env.episode_metrics(), frame.scans)
+
+    def _publish_people(self, frame: SimFrame) -> None:
+        """The crowd's odometry, the person's, and the people's markers."""
+        ns, m, crowd = frame.stamp_ns, self.msgs, frame.crowd
+        if crowd is not None:
+            for k, pub in enumerate(self.pedestrian_pubs):
+                pub.publish(m.odometry(m.header(ns, 0, MAP_FRAME), k, crowd.positions[k],
+                                       crowd.velocities[k], 0.0, child=pedestrian_frame(k)))
+        person = None
+        if self.person_pub is not None:
+            person = frame.positions[0]
+            self.person_pub.publish(m.odometry(m.header(ns, 0, MAP_FRAME), 0, person,
+                                               frame.velocities[0], 0.0, child="person"))
+        if self.people_pub is not None:
+            walkers = np.zeros((0, 2)) if crowd is None else crowd.positions
+            self.people_pub.publish(m.people_markers(
+                ns, 0, person, walkers, self.core.config.scenario.person_radius))
 
     @staticmethod
     def _yaws(frame: SimFrame) -> Any:

@@ -198,11 +198,84 @@ def test_a_person_walked_by_hand_moves_as_commanded():
     assert env._people is None  # no pedestrian model runs for a hand-walked person
 
 
-def test_ros_sim_refuses_a_walking_person():
-    from boids_env.eval.ros.sim import SimNode, SimOptions
+PEOPLE_GRAPH = dict(scene="doorway", leader="person", crowd=3, robots=4, max_cycles=150)
 
-    with pytest.raises(ValueError, match=r"a walking person .* not supported"):
-        SimNode(SimOptions(env_fields={"leader": "person"}))
+
+class _Loopback:
+    """The graph's two nodes in one process: every published tick goes through the
+    controller's tick assembly (robots, then pedestrians, as their odometry arrives) to the
+    controller, whose commands are posted back as they would come on cmd_vel."""
+
+    name = "loopback"
+
+    def __init__(self, controller_core):
+        from boids_env.eval.ros.protocol import TickAssembler
+
+        self.controller = controller_core
+        self.assembler = TickAssembler(controller_core.robots, controller_core.pedestrians)
+        self.core = None
+        self.info = None
+        self.frames = []
+
+    def wait_ready(self, core):
+        self.core = core
+
+    def announce(self, info):
+        self.info = info
+
+    def publish(self, frame):
+        self.frames.append(frame)
+        sources = [(p, v) for p, v in zip(frame.positions, frame.velocities, strict=True)]
+        if frame.crowd is not None:
+            sources += list(zip(frame.crowd.positions, frame.crowd.velocities, strict=True))
+        tick = None
+        for k in reversed(range(len(sources))):  # any order: the tick completes at the last
+            (x, y), (vx, vy) = sources[k]
+            tick = self.assembler.add(k, frame.stamp_ns, x, y, vx, vy)
+        assert tick is not None
+        for index, (a, b) in enumerate(self.controller.answer(tick)):
+            self.core.post_command(index, a, b, 0.0)
+
+    def shutdown_requested(self):
+        return False
+
+    def controllers(self):
+        return ["/loopback"]
+
+
+def test_the_ros_graph_core_runs_a_walking_person_and_a_crowd_as_boids_run():
+    # the sim core publishes the pedestrians with every tick and the controller observes
+    # them: the lockstep graph equals boids run bit for bit
+    from boids_env.eval.graph.controller import (
+        ControllerCore,
+        ControllerOptions,
+        controller_policy,
+    )
+    from boids_env.eval.graph.sim import SimCore, SimOptions
+    from boids_env.eval.run import run
+
+    core = SimCore(SimOptions(env_fields=PEOPLE_GRAPH, lockstep=True, quiet=True))
+    options = ControllerOptions(quiet=True)
+    transport = None
+
+    def episode(_stamp):
+        return transport.info
+
+    controller = ControllerCore(options, controller_policy(options), core.config, "/c", episode)
+    transport = _Loopback(controller)
+    ours = core.run_episode(0, transport)
+    reference = run("reynolds", out=None, seed=0, quiet=True, env_fields=PEOPLE_GRAPH)
+    for name in ("positions", "velocities", "commanded", "time", "pedestrians"):
+        assert np.array_equal(getattr(ours.recording, name),
+                              getattr(reference.recording, name)), name
+    assert ours.metrics == reference.metrics
+    assert ours.stats["extra_commands"] == 0
+    frame = transport.frames[5]
+    assert frame.leader_command is None  # a walking person takes no cmd_vel
+    assert frame.crowd.positions.shape == (3, 2)
+    assert reference.recording.pedestrians.shape[1] == 3
+    # (in 150 cycles the followers meet the crowd: a controller blind to the pedestrians
+    # steers otherwise, and the runs differ)
 
 
 def test_the_walkable_area_of_a_map_is_its_free_cells():

@@ -175,6 +175,21 @@ def test_several_episodes_reset_the_controller_each_time(ros):
         _assert_same_recording(ours, reference.recording, f"episode {index} (seed {seed})")
 
 
+def test_a_walking_person_and_a_crowd_on_the_ros1_graph_equal_boids_run(ros):
+    """A person walked by JuPedSim leads through a doorway with a crowd of 3: the sim
+    publishes every /pedestrian_k/odom with each tick, the controller waits for them and
+    observes them, and the lockstep run equals boids run bit for bit."""
+    out, _ = _run_lockstep(ros, "--scene", "doorway", "--leader", "person", "--crowd", "3",
+                           "--robots", "4", "--max-cycles", "150")
+    reference = _in_process(scene="doorway", leader="person", crowd=3, robots=4,
+                            max_cycles=150)
+    ours = Recording.from_parquet(out / "trajectory.parquet")
+    _assert_same_recording(ours, reference.recording, "person and crowd graph vs boids run")
+    assert np.array_equal(ours.pedestrians, reference.recording.pedestrians)
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert json.dumps(metrics, sort_keys=True) == json.dumps(reference.metrics, sort_keys=True)
+
+
 def test_real_time_graph_stays_within_tolerance_of_boids_run(ros):
     out = ros.folder / "rt"
     sim = ros.boids("sim", "ros", "sim", "--max-cycles", "150", "--out", str(out))

@@ -98,6 +98,28 @@ def test_a_tick_completes_when_every_robot_reported_its_stamp():
     assert asm.add(1, 100, 1.0, 0.5, 0.0, 0.0) is None, "a tick is returned once"
 
 
+def test_a_tick_with_a_crowd_waits_for_every_pedestrian_and_carries_them_apart():
+    asm = TickAssembler(2, pedestrians=2)  # sources 2 and 3 are the pedestrians
+    asm.add(0, 100, 0.0, 0.0, 1.0, 0.0)
+    asm.add(1, 100, 1.0, 0.0, 0.0, 0.0)
+    assert asm.add(3, 100, 5.0, 6.0, 0.5, -0.5) is None, "pedestrian 0 still missing"
+    tick = asm.add(2, 100, 3.0, 4.0, 0.0, 1.0)
+    assert tick is not None
+    assert np.array_equal(tick.positions, [[0, 0], [1, 0]])
+    assert np.array_equal(tick.crowd_positions, [[3, 4], [5, 6]])
+    assert np.array_equal(tick.crowd_velocities, [[0, 1], [0.5, -0.5]])
+    assert TickAssembler(2).add(1, 1, 0, 0, 0, 0) is None
+    lone = TickAssembler(2)
+    lone.add(0, 1, 0, 0, 0, 0)
+    assert lone.add(1, 1, 0, 0, 0, 0).crowd_positions is None  # no crowd: none
+
+
+@pytest.mark.parametrize("pedestrians", [-1, 1.5, True, "2"])
+def test_tick_assembler_refuses_a_bad_crowd_size(pedestrians):
+    with pytest.raises(ValueError, match=r"pedestrians must be a non-negative integer"):
+        TickAssembler(2, pedestrians)
+
+
 def test_ticks_come_in_order_and_a_passed_over_stamp_never_completes():
     asm = TickAssembler(2)
     asm.add(0, 100, 0, 0, 0, 0)

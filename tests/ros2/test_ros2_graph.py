@@ -199,3 +199,35 @@ def test_several_episodes_reset_the_controller_through_the_episode_topic(ros2):
         ours = Recording.from_parquet(out / f"episode_{index:03d}" / "trajectory.parquet")
         _assert_same_recording(ours, reference.recording, f"episode {index} (seed {seed})")
     assert "new episode (episode 1, seed 4)" in controller.output(), controller.output()
+
+
+def test_a_walking_person_and_a_crowd_on_the_graph_equal_boids_run(ros2):
+    """A person walked by JuPedSim leads through a doorway with a crowd of 3: the sim
+    publishes every pedestrian's /pedestrian_k/odom with each tick, the controller's ticks
+    wait for them and observe them, and the lockstep run equals boids run bit for bit."""
+    fields = dict(scene="doorway", leader="person", crowd=3, robots=4, max_cycles=150)
+    args = ("--scene", "doorway", "--leader", "person", "--crowd", "3", "--robots", "4",
+            "--max-cycles", "150")
+    out, _sim, _controller, wire = _run_lockstep(ros2, *args, spy=True)
+    reference = run("reynolds", out=None, seed=0, quiet=True, env_fields=fields)
+    ours = Recording.from_parquet(out / "trajectory.parquet")
+    _assert_same_recording(ours, reference.recording, "person and crowd graph vs boids run")
+    assert np.array_equal(ours.pedestrians, reference.recording.pedestrians)
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert json.dumps(metrics, sort_keys=True) == json.dumps(reference.metrics, sort_keys=True)
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    walks = [store.deserialize_cdr(p, "nav_msgs/msg/Odometry")
+             for k, p, _ in wire.samples if k.startswith("0/pedestrian_2/odom/")]
+    assert len(walks) == 151  # one per tick
+    assert walks[0].header.frame_id == "map" and walks[0].child_frame_id == "pedestrian_2"
+    got = np.array([[w.pose.pose.position.x, w.pose.pose.position.y] for w in walks])
+    assert np.array_equal(got, ours.pedestrians[:, 2])
+    speeds = np.array([[w.twist.twist.linear.x, w.twist.twist.linear.y] for w in walks])
+    assert np.abs(speeds).max() > 0.1  # the crowd walks, and its velocity is on the wire
+    keys = {k for k, _, _ in wire.samples}
+    assert not any(k.startswith("0/robot_0/cmd_vel/") for k in keys)  # a person takes none
+    assert any(k.startswith("0/markers/people/") for k in keys)
+    assert any(k.startswith("0/person/odom/") for k in keys)
+    _check_samples(wire, "jazzy")
