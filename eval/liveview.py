@@ -54,6 +54,10 @@ def _foxglove() -> Any:
     return foxglove
 
 
+SUBSCRIBE_GRACE = 0.5
+"""Seconds the first tick waits after a client's first subscription (``wait``), for its
+other subscriptions of the same request."""
+
 class FoxgloveView:
     """A Foxglove WebSocket server showing one run (see the module's docstring).
 
@@ -109,8 +113,10 @@ class FoxgloveView:
         self._last = LOG_START - 1
         self._paced: tuple[float, int] | None = None
         self._static = self._scene_entities()
-        if wait > 0:
-            self._subscribed.wait(wait)
+        if wait > 0 and self._subscribed.wait(wait):
+            # a client subscribes to its panels' channels together, reported one by one:
+            # the first tick waits for the rest of them too
+            time.sleep(SUBSCRIBE_GRACE)
 
     # ------------------------------------------------------------------------- episodes
     def new_episode(self) -> None:
