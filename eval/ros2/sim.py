@@ -251,7 +251,8 @@ class Ros2Sim:
         if self.view is not None:
             headings = None if q is None else np.stack([np.cos(yaws), np.sin(yaws)], axis=-1)
             self.view.show(frame.tick, frame.positions, headings,
-                           self.core.env.episode_metrics(), frame.scans)
+                           self.core.env.episode_metrics(), frame.scans,
+                           None if frame.crowd is None else frame.crowd.positions)
 
     def _publish_people(self, frame: SimFrame) -> None:
         """The crowd's odometry, the person's, and the people's markers."""
