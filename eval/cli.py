@@ -40,7 +40,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     add_ros2_parser(sub, dict(
         add_env_args=_add_env_args, env_fields=_env_fields, add_live_args=add_live_args,
         live_options=live_options, policy_extras=_policy_extras,
-        reynolds_preset=reynolds_preset, policy_help=POLICY_HELP, trust_help=TRUST_HELP))
+        reynolds_preset=reynolds_preset, add_controller_args=add_controller_args))
     _scenes_parser(sub)
     _select_parser(sub)
 
@@ -612,14 +612,9 @@ def _cmd_ros_sim(args: argparse.Namespace) -> int:
     return 0
 
 
-def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("controller", help="any policy as the study's reynolds_controller "
-                       "node", description="Subscribes to every /robot_k/odom, builds the "
-                       "env's observations, publishes every follower's /robot_k/cmd_vel and "
-                       "(Reynolds) the rule-force markers on ~markers; Reynolds parameters are "
-                       "ROS parameters, changeable live through dynamic_reconfigure: "
-                       "boids ros reconfigure leader_weight=1.1 (or rqt_reconfigure on a full "
-                       "ROS install).")
+def add_controller_args(p: argparse.ArgumentParser, source: str) -> None:
+    """The options every policy node takes, ROS 1's ``boids ros controller`` and ROS 2's
+    ``boids ros2 controller`` alike (``source``: where the group size comes from)."""
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
     p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
@@ -627,8 +622,7 @@ def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--leader-weight", type=float, default=None,
                    help="Reynolds leader weight (preset's: 1.0); reynolds policies only")
     p.add_argument("--robots", type=int, default=None,
-                   help="group size of the odometry source (default: boids ros sim's, read "
-                   "from the /boids/env_config parameter)")
+                   help=f"group size of the odometry source (default: {source})")
     p.add_argument("--arena-half-size", type=float, default=None,
                    help="m, with --robots (5.0)")
     p.add_argument("--sync", choices=("stamp", "rate"), default="stamp",
@@ -638,6 +632,17 @@ def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
                    help="policy seed when the source announces no episode (0)")
     p.add_argument("--max-ticks", type=int, default=None,
                    help="exit after answering this many ticks")
+
+
+def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("controller", help="any policy as the study's reynolds_controller "
+                       "node", description="Subscribes to every /robot_k/odom, builds the "
+                       "env's observations, publishes every follower's /robot_k/cmd_vel and "
+                       "(Reynolds) the rule-force markers on ~markers; Reynolds parameters are "
+                       "ROS parameters, changeable live through dynamic_reconfigure: "
+                       "boids ros reconfigure leader_weight=1.1 (or rqt_reconfigure on a full "
+                       "ROS install).")
+    add_controller_args(p, "boids ros sim's, read from the /boids/env_config parameter")
     p.add_argument("--no-markers", action="store_true", help="do not publish ~markers")
     p.add_argument("--quiet", action="store_true",
                    help="print nothing but errors (no start line, waiting or new-episode "

@@ -18,7 +18,7 @@ def add_ros2_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any])
     """Adds ``ros2`` (``sim``, ``controller``) to the ``boids`` subparsers. ``helpers``:
     ``boids``' shared flag helpers by name (``add_env_args``, ``env_fields``,
     ``add_live_args``, ``live_options``, ``policy_extras``, ``reynolds_preset``,
-    ``policy_help``, ``trust_help``)."""
+    ``add_controller_args``)."""
     p = sub.add_parser("ros2", help="the study's graph as ROS 2 nodes over Zenoh (rmw_zenoh's "
                        "conventions; no ROS install)",
                        description="ROS 2 nodes on the study's topics (/robot_k/odom, "
@@ -120,31 +120,13 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
 
 def _controller_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> None:
-    from boids_env.config import PRESETS
 
     p = sub.add_parser("controller", help="any policy as the study's reynolds_controller, a "
                        "ROS 2 node", description="Subscribes to every /robot_k/odom, builds "
                        "the env's observations, publishes every follower's /robot_k/cmd_vel "
                        "and (Reynolds) the rule-force markers on /<node>/markers. Runs until "
                        "stopped (Ctrl-C) or --max-ticks.")
-    p.add_argument("--policy", default="reynolds", help=helpers["policy_help"])
-    p.add_argument("--trust-model", action="store_true", help=helpers["trust_help"])
-    p.add_argument("--preset", choices=sorted(PRESETS), default=None,
-                   help="Reynolds parameters of --policy reynolds (paper)")
-    p.add_argument("--leader-weight", type=float, default=None,
-                   help="Reynolds leader weight (preset's: 1.0); reynolds policies only")
-    p.add_argument("--robots", type=int, default=None,
-                   help="group size of the odometry source (default: boids ros2 sim's, read "
-                   "from /boids/env_config)")
-    p.add_argument("--arena-half-size", type=float, default=None,
-                   help="m, with --robots (5.0)")
-    p.add_argument("--sync", choices=("stamp", "rate"), default="stamp",
-                   help="stamp: answer each tick once every robot reported it (default); "
-                   "rate: every 0.1 s from the latest odometry (unsynchronised robots)")
-    p.add_argument("--seed", type=int, default=0,
-                   help="policy seed when the source announces no episode (0)")
-    p.add_argument("--max-ticks", type=int, default=None,
-                   help="exit after answering this many ticks")
+    helpers["add_controller_args"](p, "boids ros2 sim's, read from /boids/env_config")
     p.add_argument("--config-wait", type=float, default=30.0,
                    help="seconds to wait for the simulator's /boids/env_config (30)")
     p.add_argument("--no-markers", action="store_true", help="do not publish the markers")
