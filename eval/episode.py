@@ -191,12 +191,12 @@ def warn_outside_card(policy: Policy, configs: dict[str, EnvConfig],
         outside = {case: why for case, why in outside.items() if why}
         if not outside:
             return None
-        shown = [f"{case} ({'; '.join(why)})" for case, why in list(outside.items())[:3]]
+        shown = [f"[{case}] {'; '.join(why)}" for case, why in list(outside.items())[:3]]
         more = f" and {len(outside) - 3} more" if len(outside) > 3 else ""
         label = name or getattr(policy, "name", "the model")
         fits = {_fit(configs[case], card) for case in outside}
         note = (f"{label} was not made for {len(outside)} of the {len(configs)} cases: "
-                f"{', '.join(shown)}{more}; "
+                f"{' '.join(shown)}{more}; "
                 + (fits.pop() if len(fits) == 1 else "see boids card for what each model "
                    "was made for"))
     if note:

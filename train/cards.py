@@ -130,10 +130,10 @@ def write_card(path: str | Path, card: ModelCard) -> None:
 
 def shipped_card(name: str) -> ModelCard:
     """The card of shipped model ``name``: its training config's card with :data:`SHIPPED`'s
-    additions."""
+    additions (none for a model not listed there yet)."""
     meta = read_meta(MODELS[name])
     card = card_from_training(meta["train_config"], meta.get("env_fields"))
-    return dataclasses.replace(card, **SHIPPED[name])
+    return dataclasses.replace(card, **SHIPPED.get(name, {}))
 
 
 def write_shipped_cards() -> None:

@@ -394,6 +394,9 @@ def models_page() -> str:
              "generated from the cards in the zips.\n\n"]
     rows = []
     for name, path in MODELS.items():
+        if name not in cards:
+            rows.append((code(name), code(path.name), "(no card)", *["—"] * 7))
+            continue
         card = cards[name]
         rows.append((code(name), code(path.name), cell(card.summary),
                      cell(card.scene_words()), "{}–{}".format(*card.group_sizes),
@@ -404,8 +407,7 @@ def models_page() -> str:
                      str(card.layout.size if card.layout else "—")))
     parts.append(table(("model", "file", "made for", "scenes", "robots", "leader m/s",
                         "leaders", "crowd", "safety filter", "obs. values"), rows) + "\n")
-    for name in MODELS:
-        card = cards[name]
+    for name, card in cards.items():
         parts.append(f"\n## {name}\n\n{cell(card.summary)}. Recipe: {cell(card.recipe)}. "
                      f"Robots: {', '.join(card.robots)} ({card.drive}). Sensing: "
                      f"{cell(card.sensing)}.\n\n")
