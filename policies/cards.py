@@ -17,9 +17,9 @@ when it has one, else as having none (nothing is checked against it).
 
 :meth:`ModelCard.outside` says what of an env lies outside a card (robot, scene kind, crowd,
 leader kind, group size, leader speed, standstills): ``boids run`` and ``boids eval`` warn in
-one line and name the shipped model made for it (:func:`~boids_env.policies.registry.
-fitting_model`). :func:`explain_layout` turns an observation-layout mismatch into its reasons
-(headings, pedestrian slots, route sensing, ...).
+one line and name the shipped model made for it
+(:func:`~boids_env.policies.registry.fitting_model`). :func:`explain_layout` turns an
+observation-layout mismatch into its reasons (headings, pedestrian slots, route sensing, ...).
 """
 
 from __future__ import annotations
