@@ -105,7 +105,8 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
             unpickles objects stored in the file and so runs any code they carry (only for
             files you trust). Without it a zip acts from its arrays alone (see
             :func:`~boids_env.policies.sb3_policy.load_model_policy`) or is refused with an
-            error that names ``--trust-model``.
+            error that names ``--trust-model``. A model's card (what it was made for,
+            :mod:`~boids_env.policies.cards`) is its ``card`` attribute (None without one).
         reynolds_overrides: Reynolds parameters (e.g. ``leader_weight=1.1``); other policies
             ignore them. The physical and timing ones (``dt``, ``startup_time``,
             ``max_speed``, ``horizon``) belong to the env: bound, the policy takes them from

@@ -118,7 +118,11 @@ SHIPPED: dict[str, dict[str, Any]] = {
             ("61 robots", _f(14.514, 0.0029, 0.0, farthest=2.04))]),
     },
 }
-"""What each shipped model's measurements add to the card its training config gives."""
+"""What each shipped model's measurements add to the card its training config gives. A new
+shipped model (a name in :data:`~boids_env.policies.registry.MODELS`) gets its card from its
+training config alone until an entry here adds its summary, recipe, what it was validated on
+and its figures (``_cases(suite, source, [(case, _f(total, touching, wall, ...)), ...])``);
+then ``python -m boids_env.train.cards`` writes it into the zip."""
 
 
 def write_card(path: str | Path, card: ModelCard) -> None:
