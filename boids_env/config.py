@@ -216,6 +216,13 @@ class ObservationConfig:
     distance then). Opt-in; the ``route`` Reynolds preset follows it."""
     route_cell: float = 0.1
     """Cell size (m) of the route sensing's grid (finer: narrower doors resolved, slower)."""
+    route_leader: bool = False
+    """Sense the leader along its route: the ``leader_position`` block holds the route's
+    direction × its length (clipped to the scene's span like the straight line) instead of
+    the straight-line offset, so a follower behind a wall sees the leader through the door.
+    Where the leader is in sight the two nearly agree. Needs ``route_sensing`` (whose block
+    still follows, valid flag included). Opt-in, for learned followers in buildings
+    (``learned-buildings``)."""
 
     def __post_init__(self) -> None:
         _set(self, "horizon", _number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
@@ -243,6 +250,10 @@ class ObservationConfig:
         _set(self, "relative_actions", _flag("relative_actions", self.relative_actions))
         _set(self, "route_sensing", _flag("route_sensing", self.route_sensing))
         _set(self, "route_cell", _number("route_cell", self.route_cell, 0.02, 1.0, unit="m"))
+        _set(self, "route_leader", _flag("route_leader", self.route_leader))
+        if self.route_leader and not self.route_sensing:
+            raise ValueError("route_leader=True reads the leader along the route: it needs "
+                             "route_sensing=True")
         from boids_env.world.robots import ACTIONS
 
         if self.action not in ACTIONS:

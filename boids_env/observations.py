@@ -709,6 +709,11 @@ class Observer:
         obs = build_observations(positions, velocities, self.layout, cfg.horizon,
                                  cfg.velocity_bound, self.reach, self.frame, self.sensors,
                                  crowd, headings)
+        if cfg.route_leader:  # the leader as reached along the route (its block follows)
+            route = obs[:, self.layout.block("route")].astype(np.float64)
+            along = route[:, 0:2] * route[:, 2:3]
+            obs[:, self.layout.leader_position] = np.minimum(np.maximum(along, -self.reach),
+                                                             self.reach)
         if cfg.obs_noise > 0:
             if self._rng is None:
                 raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")

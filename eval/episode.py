@@ -46,7 +46,8 @@ def env_fields_for(policy: Policy, fields: dict[str, Any] | None = None) -> dict
 
 TRAINED_INTERFACE = ("dt", "frame", "relative_actions", "action", "neighbours",
                      "velocity_bound", "sense_walls", "static_slots", "static_range",
-                     "lidar_rays", "lidar_range", "pedestrian_slots", "pedestrian_range")
+                     "lidar_rays", "lidar_range", "pedestrian_slots", "pedestrian_range",
+                     "route_sensing", "route_cell", "route_leader")
 """Env fields that fix what a learned policy's observations and actions mean (their frame,
 scale, slots and ranges, and the control period its actions were learned at). A model acts
 only in an env that has its training's values of these: its ``env_fields``, the defaults

@@ -116,6 +116,11 @@ class TrainConfig:
     None keeps the checkpoint's). A converged policy acts with a std of about 0.04 m/s and
     explores too little to find what a changed reward asks for (docs:
     explanation/learned-followers)."""
+    resume_new_inputs: int = 0
+    """With ``--resume``: the checkpoint's network reads this many fewer observation values,
+    the last ones (a sensing block added since it was trained, e.g. route sensing's 4).
+    Their first-layer weights start at zero, so the resumed policy first acts exactly as
+    the checkpoint did; the optimizer starts afresh."""
     # PPO.
     n_steps: int = 256
     """PPO: steps each VecEnv slot (a follower) collects per rollout."""
@@ -185,6 +190,8 @@ class TrainConfig:
                                  f"algorithm={self.algorithm!r}")
             _set(self, "resume_log_std", check_number("resume_log_std", self.resume_log_std,
                                                       -20, 5))
+        _set(self, "resume_new_inputs", check_integer("resume_new_inputs",
+                                                      self.resume_new_inputs, 0, 1024))
         for name, lo in (("batch_size", 1), ("n_steps", 1), ("n_epochs", 1), ("buffer_size", 1),
                          ("learning_starts", 0), ("train_freq", 1), ("gradient_steps", 1),
                          ("eval_every", 0), ("checkpoint_every", 0)):

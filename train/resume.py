@@ -49,8 +49,13 @@ def load_checkpoint(path: str | Path, config: TrainConfig, env: Any, device: str
     names, variables = model._get_torch_save_params()
     where = get_device(device)
     states = {name: _weights(path, f"{name}.pth", where) for name in names}
+    exact = True
+    if config.resume_new_inputs:
+        states = {"policy": _widened(path, states.get("policy"), config.resume_new_inputs,
+                                     model.observation_space.shape[0])}
+        exact = False  # the optimizer starts afresh: its moments are of the narrower network
     try:
-        model.set_parameters(states, exact_match=True, device=device)
+        model.set_parameters(states, exact_match=exact, device=device)
     except (RuntimeError, ValueError, KeyError, IndexError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise UntrustedModelError(path, f"its weights do not fit the network this config "
@@ -67,6 +72,31 @@ def load_checkpoint(path: str | Path, config: TrainConfig, env: Any, device: str
     for name, value in counters.items():
         setattr(model, name, value)
     return model
+
+
+def _widened(path: str | Path, policy: Any, new: int, size: int) -> dict[str, Any]:
+    """The policy state dict of a checkpoint whose network reads ``new`` fewer inputs than
+    ``size``: each first layer (a weight whose input width is ``size - new``) gains ``new``
+    zero columns at the end, so the widened network computes what the checkpoint did."""
+    import torch
+
+    if not isinstance(policy, dict):
+        raise ValueError(f"checkpoint {path}: its policy.pth is not a table of weights")
+    old = size - new
+    out, widened = {}, 0
+    for name, tensor in policy.items():
+        if (isinstance(tensor, torch.Tensor) and tensor.ndim == 2
+                and name.endswith(".0.weight") and tensor.shape[1] == old):
+            tensor = torch.cat([tensor, tensor.new_zeros((tensor.shape[0], new))], dim=1)
+            widened += 1
+        out[name] = tensor
+    if not widened:
+        widths = sorted({int(t.shape[1]) for t in policy.values()
+                         if isinstance(t, torch.Tensor) and t.ndim == 2})
+        raise ValueError(f"resume_new_inputs={new}: checkpoint {path} has no first layer of "
+                         f"{old} inputs (this env's {size} observation values less {new}); "
+                         f"its layers read {widths}")
+    return out
 
 
 def _counters(path: str | Path) -> dict[str, int]:

@@ -129,7 +129,8 @@ def model_meta(config: TrainConfig) -> dict[str, Any]:
 DATA_LIMIT = 16 << 20
 """The most bytes a checkpoint's SB3 ``data`` entry may hold when its timesteps are read
 (SB3 writes a few hundred kB)."""
-RESUME_FREE = ("total_timesteps", "processes", "torch_threads", "device", "resume_log_std")
+RESUME_FREE = ("total_timesteps", "processes", "torch_threads", "device", "resume_log_std",
+               "resume_new_inputs")
 """Config fields that do not make another training: a resume may change them."""
 
 
@@ -174,6 +175,9 @@ def check_resume(config: TrainConfig, out: Path, resume: str | Path | None,
         if config.resume_log_std is not None:
             raise ValueError("resume_log_std is set but no checkpoint is resumed: it resets the "
                              "exploration of a trained model (give --resume CHECKPOINT.zip)")
+        if config.resume_new_inputs:
+            raise ValueError("resume_new_inputs is set but no checkpoint is resumed: it widens "
+                             "a trained model's inputs (give --resume CHECKPOINT.zip)")
         return
     if not Path(resume).is_file():
         raise FileNotFoundError(f"checkpoint to resume not found: {resume}")

@@ -194,10 +194,10 @@ def scene_key(spec: str) -> str:
 
 
 def scene_files(spec: str) -> tuple[Path, ...]:
-    """The files scene ``spec`` reads (resolved): none for a built-in, the shapes file, or a
-    map's YAML and its image."""
-    if spec in BUILTIN or not spec:
-        return ()
+    """The files scene ``spec`` reads (resolved): none for a built-in or a floor plan, the
+    shapes file, or a map's YAML and its image."""
+    if spec in BUILTIN or not spec or floorplans.parse(spec) is not None:
+        return ()  # built in, or generated from its seed
     path = Path(spec).resolve()
     if path.suffix.lower() in (".yaml", ".yml"):
         from boids_env.world.maps import read_map_yaml

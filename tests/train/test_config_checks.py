@@ -202,3 +202,15 @@ def test_bad_worlds_and_pauses_are_refused_by_name():
     assert TrainConfig.from_dict(TrainConfig(
         leader_pauses=((), ((5.0, 1.0),)), worlds=({"scene": "doorway"},)).to_dict()
     ).leader_pauses == ((), ((5.0, 1.0),))
+
+
+def test_a_floor_plan_world_reads_no_file():
+    """A generated floor plan is built from its seed: a run's identity lists no input file
+    for it (it was once taken for a file named ``floorplan@1:3`` and refused)."""
+    from boids_env.train.config import TrainConfig
+    from boids_env.train.run import identity
+    from boids_env.world.scenes import scene_files
+
+    assert scene_files("floorplan:3") == () and scene_files("floorplan@1:3") == ()
+    cfg = TrainConfig(group_sizes=(7,), copies=1, worlds=({"scene": "floorplan:3"},))
+    assert "inputs" not in identity(cfg)

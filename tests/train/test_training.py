@@ -198,3 +198,36 @@ def test_a_short_training_says_how_it_goes_and_evaluates_its_final_model(tmp_pat
     assert "the final model on the evaluation episodes (seeds 100, 101): total" in out
     assert main(["curves", str(tmp_path / "t"), "--out", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").is_file()
+
+
+def test_resume_new_inputs_widens_a_model_that_first_acts_as_before(tmp_path):
+    """A model trained without route sensing resumed with its 4 inputs: the new first-layer
+    columns start at zero, so the widened policy's actions equal the old one's."""
+    from boids_env.train.resume import load_checkpoint
+    from boids_env.train.run import make_vec_env
+
+    arena = {"max_cycles": 30, "neighbours": 4}
+    first = train(TrainConfig(**TINY, seed=1), tmp_path / "first")
+    routed = TrainConfig(**{**TINY, "total_timesteps": 2400, "resume_new_inputs": 4,
+                            "env_fields": {**arena, "route_sensing": True}})
+    venv = make_vec_env(routed)
+    try:
+        model = load_checkpoint(first, routed, venv, "cpu", str(tmp_path / "tb"))
+    finally:
+        venv.close()
+    old = SB3Policy.load(first, trust=True)
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(6, 26)).astype(np.float32)
+    route = rng.normal(size=(6, 4)).astype(np.float32)
+    widened = SB3Policy(model, routed.env_fields)
+    assert widened.obs_size == 30
+    np.testing.assert_array_equal(widened.act_batch(np.hstack([obs, route])),
+                                  old.act_batch(obs))
+    # and it trains on from there, the optimizer afresh
+    path = train(routed, tmp_path / "widened", resume=first)
+    assert read_meta(path)["env_fields"]["route_sensing"] is True
+    with pytest.raises(ValueError, match=r"resume_new_inputs=3: checkpoint .* has no first "
+                                         r"layer of 27 inputs"):
+        train(routed.replace(resume_new_inputs=3), tmp_path / "bad", resume=first)
+    with pytest.raises(ValueError, match="resume_new_inputs is set but no checkpoint"):
+        train(routed, tmp_path / "fresh")

@@ -116,3 +116,52 @@ def test_maps_shapes_files_and_floor_plans_have_routes(spec):
     assert valid.all(), points[1:][~valid]
     straight = np.linalg.norm(points[1:] - points[0], axis=1)
     assert (length >= straight - 0.15).all()
+
+
+def _leader_blocks(route_leader: bool, positions: np.ndarray) -> np.ndarray:
+    """The leader-position block of every follower in the ``doorway`` scene (world frame)."""
+    from boids_env.observations import Observer
+
+    config = EnvConfig.from_kwargs(scene="doorway", robots=len(positions), route_sensing=True,
+                                   route_leader=route_leader)
+    observer = Observer(config)
+    obs = observer(positions, np.zeros_like(positions))
+    return obs[:, observer.layout.leader_position].astype(float)
+
+
+def test_route_leader_shows_the_leader_through_the_door():
+    # doorway: a wall at x = 0 with a 1 m door at y = 0; the leader east of it, one follower
+    # west of the wall 2 m south of the door, one in the leader's room
+    positions = np.array([[1.0, -2.0], [-1.0, -2.0], [2.0, -1.0]])
+    straight = _leader_blocks(False, positions)
+    routed = _leader_blocks(True, positions)
+    np.testing.assert_allclose(straight[0], [2.0, 0.0], atol=1e-6)  # through the wall
+    to_door = np.array([0.0, 0.0]) - positions[1]
+    cosine = routed[0] @ to_door / (np.linalg.norm(routed[0]) * np.linalg.norm(to_door))
+    assert cosine > 0.9, routed[0]  # towards the door, not the leader's bearing
+    # as far as the way round: over the door (2.24 m + 2.24 m), not the 2 m through the wall
+    assert np.linalg.norm(routed[0]) > 4.0, routed[0]
+    # in sight of the leader the two agree (to the route grid's cells)
+    np.testing.assert_allclose(routed[1], straight[1], atol=0.15)
+
+
+def test_route_leader_needs_route_sensing():
+    with pytest.raises(ValueError, match=r"route_leader=True .* needs route_sensing=True"):
+        EnvConfig.from_kwargs(scene="doorway", route_leader=True)
+    with pytest.raises(ValueError, match="route_leader"):
+        EnvConfig.from_kwargs(scene="doorway", route_sensing=True, route_leader=2)
+
+
+def test_route_leader_counts_the_gap_along_the_route():
+    # one follower 2 m from the leader through the wall: inside the 2.25 m cohesion
+    # threshold in a straight line, about 4.5 m by the door
+    positions = np.array([[1.0, -2.0], [-1.0, -2.0]])
+    gaps = {}
+    for routed in (False, True):
+        env = BoidsEnv(scene="doorway", robots=2, reward="safe", reward_gap=10.0,
+                       route_sensing=True, route_leader=routed)
+        env.reset(seed=0)
+        gaps[routed] = float(env._gap_term(positions)[0, 0])
+    assert gaps[False] == 0.0
+    dt = 0.1
+    assert gaps[True] < -10.0 * dt * 2.0, gaps  # at least 2 m beyond the threshold
