@@ -410,6 +410,8 @@ def sensing_words(config: EnvConfig) -> str:
     if layout.headings:
         parts.append("headings")
     parts.append("route sensing" if layout.route else "no route sensing")
+    if getattr(obs, "route_leader", False):
+        parts.append("the leader sensed where its route leads (route_leader)")
     return "; ".join(parts)
 
 

@@ -277,3 +277,17 @@ def test_boids_card_shows_lists_and_writes_a_card(tmp_path, capsys):
     assert main(["card", str(path), "--write", "--from", str(source)]) == 2
     assert "unknown model card field(s) ['code']" in capsys.readouterr().err
     assert model_card(path).summary == "for buildings"  # refused before anything is written
+
+
+def test_the_card_of_the_buildings_recipe_names_its_floor_plans_and_route_sensing():
+    from boids_env.config import EnvConfig
+    from boids_env.train.cards import training_card
+    from boids_env.train.config import TrainConfig, resolve_recipe
+
+    config = TrainConfig.from_toml(resolve_recipe("ppo_buildings"))
+    card = training_card(config, recipe="ppo_buildings")
+    assert card.floorplans == tuple(range(20, 40))  # the recipe's training plans, in order
+    assert card.scenes == ("floorplan", "arena", "doorway", "corridor", "pillars")
+    assert card.layout.route and "route_leader" in card.sensing and card.safety_filter
+    assert card.outside(EnvConfig.from_kwargs(**{**config.env_fields,
+                                                 "scene": "floorplan:1001"})) == []
