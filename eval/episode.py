@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -12,7 +13,9 @@ import numpy.typing as npt
 
 from boids_env.config import FIELD_OWNER, EnvConfig, ObservationConfig
 from boids_env.environment import BoidsEnv
+from boids_env.observations import ObservationLayout
 from boids_env.policies.base import Policy
+from boids_env.policies.cards import ModelCardWarning, explain_layout, layout_reasons
 from boids_env.recording import Recorder, Recording
 
 
@@ -120,15 +123,86 @@ def bind_policy(policy: Policy, env: BoidsEnv) -> None:
     in, after checking that the env is one it can act in: a learned model's saved layout
     and its training (:func:`check_training`). Run, eval, the live window and the ROS
     controller all bind through here."""
-    saved = getattr(policy, "observation_layout", None)
-    if saved is not None and saved != env.layout:
-        raise ValueError(f"the policy reads observations laid out as {list(saved.blocks)}, the "
-                         f"env gives {list(env.layout.blocks)}: make the env with the policy's "
-                         f"env_fields {getattr(policy, 'env_fields', {})}")
-    check_training(policy, getattr(env, "episode_config", None) or env.config)
+    config = getattr(env, "episode_config", None) or env.config
+    check_layout(policy, env.layout, config)
+    check_training(policy, config)
     bind = getattr(policy, "bind", None)
     if callable(bind):
         bind(env)
+
+
+def check_layout(policy: Policy, layout: ObservationLayout, config: EnvConfig,
+                 fields: dict[str, Any] | None = None) -> None:
+    """``ValueError`` saying why, when observations laid out as ``layout`` (by the env
+    ``config``) do not fit ``policy``: a learned model's saved layout (from its metadata or
+    card) that differs, or a network that takes another size. The reasons name the blocks
+    (headings, pedestrian slots, route sensing, ...; :func:`~boids_env.policies.cards.
+    explain_layout`)."""
+    saved = getattr(policy, "observation_layout", None)
+    size = getattr(policy, "obs_size", None)
+    card = getattr(policy, "card", None)
+    where = f" (env fields {fields})" if fields else ""
+    if saved is not None and saved != layout:
+        raise ValueError(f"the policy cannot act in this env{where}: "
+                         f"{explain_layout(saved, layout, config, card)}; the policy reads "
+                         f"observations laid out as {list(saved.blocks)}, the env gives "
+                         f"{list(layout.blocks)}")
+    if isinstance(size, int | np.integer) and size and int(size) != layout.size:
+        try:
+            reasons = layout_reasons(ObservationLayout.for_size(int(size)), layout, config,
+                                     card)
+        except ValueError:  # not a study-era size: no guess at its blocks
+            reasons = []
+        why = f"; {'; '.join(reasons)} (its layout guessed from its size)" if reasons else ""
+        raise ValueError(f"the policy's network takes observations of size {size}, the env "
+                         f"gives {layout.size}{where}: the model was trained with other "
+                         f"observation settings{why}")
+
+
+def card_note(policy: Policy, config: EnvConfig, name: str | None = None) -> str | None:
+    """One line saying what of the env ``config`` lies outside the card of ``policy`` (a
+    learned model's, :mod:`~boids_env.policies.cards`) and which shipped model was made for
+    it; None when the policy has no card or the card covers the env."""
+    card = getattr(policy, "card", None)
+    outside = card.outside(config) if card is not None else []
+    if not outside:
+        return None
+    label = name or getattr(policy, "name", "the model")
+    return f"{label} was not made for this env: {'; '.join(outside)}; {_fit(config, card)}"
+
+
+def _fit(config: EnvConfig, card: Any) -> str:
+    from boids_env.policies.registry import fitting_model
+
+    fit = fitting_model(config, card)
+    return (f"use --policy {fit}, the shipped model made for it" if fit
+            else "none of the shipped models was made for it")
+
+
+def warn_outside_card(policy: Policy, configs: dict[str, EnvConfig],
+                      name: str | None = None) -> str | None:
+    """Warns (:class:`~boids_env.policies.cards.ModelCardWarning`, one line) when any env of
+    ``configs`` (by case name; one env: its name is not shown) lies outside the card of
+    ``policy``; returns the line (None: no warning)."""
+    if len(configs) == 1:
+        note = card_note(policy, next(iter(configs.values())), name)
+    else:
+        card = getattr(policy, "card", None)
+        outside = {case: card.outside(c) for case, c in configs.items()} if card else {}
+        outside = {case: why for case, why in outside.items() if why}
+        if not outside:
+            return None
+        shown = [f"[{case}] {'; '.join(why)}" for case, why in list(outside.items())[:3]]
+        more = f" and {len(outside) - 3} more" if len(outside) > 3 else ""
+        label = name or getattr(policy, "name", "the model")
+        fits = {_fit(configs[case], card) for case in outside}
+        note = (f"{label} was not made for {len(outside)} of the {len(configs)} cases: "
+                f"{' '.join(shown)}{more}; "
+                + (fits.pop() if len(fits) == 1 else "see boids card for what each model "
+                   "was made for"))
+    if note:
+        warnings.warn(note, ModelCardWarning, stacklevel=2)
+    return note
 
 
 def check_fits(policy: Policy, envs: list[dict[str, Any]]) -> None:
@@ -145,15 +219,7 @@ def check_fits(policy: Policy, envs: list[dict[str, Any]]) -> None:
         seen.add(key)
         env = BoidsEnv(**merged)
         try:
-            saved = getattr(policy, "observation_layout", None)
-            if saved is not None and saved != env.layout:
-                bind_policy(policy, env)  # raises the layout mismatch, named
-            size = getattr(policy, "obs_size", None)
-            given = int(env.observation_space(env.possible_agents[0]).shape[0])
-            if size is not None and int(size) != given:
-                raise ValueError(f"the policy's network takes observations of size {size}, "
-                                 f"the env gives {given} (env fields {fields}): the model was "
-                                 f"trained with other observation settings")
+            check_layout(policy, env.layout, env.config, fields)
         finally:
             env.close()
 

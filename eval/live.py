@@ -140,7 +140,7 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
     from boids_env.checks import number
     from boids_env.config import reynolds_params
     from boids_env.environment import BoidsEnv
-    from boids_env.eval.episode import bind_policy, env_fields_for
+    from boids_env.eval.episode import bind_policy, env_fields_for, warn_outside_card
     from boids_env.policies.registry import load_policy, split_preset
     from boids_env.recording import Recorder
 
@@ -157,6 +157,7 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
     external = env.config.scenario.path == "external"
     obs, _ = env.reset(seed=seed)
     bind_policy(policy, env)  # its layout and scene, the env's timing and top speed
+    warn_outside_card(policy, {"": env.config}, name=policy_spec)  # one line, as boids run
     policy.reset(seed)
     # the bound parameters (the env's dt, start-up and top speed) are the ones tuned
     controls = LiveControls(getattr(policy, "params", None),

@@ -15,7 +15,13 @@ from pathlib import Path
 from typing import Any
 
 from boids_env.environment import BoidsEnv
-from boids_env.eval.episode import EpisodeResult, env_fields_for, run_episode, world_changes
+from boids_env.eval.episode import (
+    EpisodeResult,
+    env_fields_for,
+    run_episode,
+    warn_outside_card,
+    world_changes,
+)
 from boids_env.eval.outputs import RunFolder
 from boids_env.files import write_json
 from boids_env.policies.registry import load_policy, split_preset
@@ -134,6 +140,7 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
     params = getattr(pol, "params", None)
     changes = world_changes(pol, env_fields)  # recorded in config.json and printed
     env = BoidsEnv(**env_fields_for(pol, env_fields))
+    warn_outside_card(pol, {"": env.config}, name=policy)  # one line; the run goes on
     view, on_step = _live_view(env, live, quiet)
     try:
         result = run_episode(env, pol, seed, record=True, on_step=on_step)

@@ -104,13 +104,18 @@ def _check_model_fits(policy: PolicySpec, suite: Suite) -> None:
     """A model's weights loaded and its observation size checked against every case here,
     once, rather than found failing in every episode. Not for a trusted zip: loading it runs
     what its pickles hold, which stays in the workers."""
-    from boids_env.eval.episode import check_fits
+    from boids_env.eval.episode import check_fits, env_fields_for, warn_outside_card
     from boids_env.policies.registry import MODELS, load_policy
 
     if policy.trust or not (policy.spec.endswith(".zip") or policy.spec in MODELS):
         return
     loaded = load_policy(policy.spec, preset=policy.preset, trust=policy.trust)
     check_fits(loaded, [case.env for case in suite.cases])
+    if getattr(loaded, "card", None) is not None:  # cases outside its card: one line
+        from boids_env.config import EnvConfig
+
+        warn_outside_card(loaded, {case.name: EnvConfig.from_kwargs(
+            **env_fields_for(loaded, case.env)) for case in suite.cases}, name=policy.label)
 
 
 def distinct_policies(policies: Sequence[PolicySpec]) -> list[PolicySpec]:

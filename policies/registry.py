@@ -4,16 +4,21 @@
 
 from __future__ import annotations
 
+import functools
 import importlib
 import inspect
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from boids_env.config import PRESETS
 from boids_env.policies.base import Policy
+from boids_env.policies.cards import ModelCard, read_card
 from boids_env.policies.random_policy import RandomPolicy
 from boids_env.policies.reynolds import ReynoldsPolicy
 from boids_env.untrusted import open_zip
+
+if TYPE_CHECKING:
+    from boids_env.config import EnvConfig
 
 BUILTIN = ("reynolds", "random", "learned", "learned-study", "learned-person",
            "learned-scenes")
@@ -34,6 +39,36 @@ doorways, corridors, pillars, up to 61 robots, leaders who stand still, with the
 in the loop; its env fields switch the filter on."""
 MODELS = {"learned": LEARNED_MODEL, "learned-study": STUDY_MODEL,
           "learned-person": PERSON_MODEL, "learned-scenes": SCENES_MODEL}
+NOT_SUGGESTED = ("learned-study",)
+"""Shipped models never named as the one that fits an env (not made for robots)."""
+
+
+def shipped_cards() -> dict[str, ModelCard]:
+    """The cards of the shipped models (:data:`MODELS`) that carry one, by name."""
+    return {name: card for name, path in MODELS.items()
+            if (card := _card(str(path))) is not None}
+
+
+@functools.lru_cache(maxsize=16)
+def _card(path: str) -> ModelCard | None:
+    return model_card(path)
+
+
+def model_card(path: str | Path) -> ModelCard | None:
+    """The card of a model zip (:func:`~boids_env.policies.cards.read_card`): the one it
+    carries, else the one its training config describes, else None."""
+    from boids_env.policies.sb3_policy import read_meta
+
+    return read_card(path, read_meta(path))
+
+
+def fitting_model(config: EnvConfig, card: ModelCard | None = None) -> str | None:
+    """The first shipped model (in :data:`MODELS` order, :data:`NOT_SUGGESTED` aside, and not
+    the one ``card`` belongs to) whose card covers the env ``config``; None when none does."""
+    for name, other in shipped_cards().items():
+        if name not in NOT_SUGGESTED and other != card and not other.outside(config):
+            return name
+    return None
 
 
 def split_preset(spec: str, preset: str = "paper") -> tuple[str, str]:
@@ -70,7 +105,8 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
             unpickles objects stored in the file and so runs any code they carry (only for
             files you trust). Without it a zip acts from its arrays alone (see
             :func:`~boids_env.policies.sb3_policy.load_model_policy`) or is refused with an
-            error that names ``--trust-model``.
+            error that names ``--trust-model``. A model's card (what it was made for,
+            :mod:`~boids_env.policies.cards`) is its ``card`` attribute (None without one).
         reynolds_overrides: Reynolds parameters (e.g. ``leader_weight=1.1``); other policies
             ignore them. The physical and timing ones (``dt``, ``startup_time``,
             ``max_speed``, ``horizon``) belong to the env: bound, the policy takes them from

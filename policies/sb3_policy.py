@@ -1,7 +1,8 @@
 """A saved Stable-Baselines3 model as a :class:`~policies.base.Policy` (deterministic actions).
 
 Models saved by ``boids train`` carry a ``boids.json`` entry in their zip (algorithm, the env
-fields the observations depend on, the training config) and their actor as numpy arrays
+fields the observations depend on, the training config, the model's card:
+:mod:`boids_env.policies.cards`) and their actor as numpy arrays
 (``boids_actor.npz``). Other SB3 zips act from their weights alone
 (:mod:`boids_env.policies.sb3_zip`), or, for a file the user trusts (``trust=True``), through
 SB3's own load, trying the algorithms in :data:`ALGORITHMS` in turn: that load unpickles
@@ -21,6 +22,7 @@ import numpy.typing as npt
 
 from boids_env.files import atomic_path, read_zip_entry
 from boids_env.policies.base import BatchPolicy
+from boids_env.policies.cards import read_card
 from boids_env.policies.mlp_actor import ACTOR_ENTRY, MLPActor
 from boids_env.untrusted import open_zip
 
@@ -156,7 +158,12 @@ def load_model_policy(path: str | Path, device: str = "cpu", *, trust: bool = Fa
     meta = read_meta(path)  # a file that is not a zip is refused here, by name
     env_fields = _env_fields(path, meta.get("env_fields"))
     layout = _layout(path, meta.get("observation_layout"))
+    card = read_card(path, meta)  # a malformed card is refused here, by name
     policy = _load_model_policy(path, device, trust, env_fields)
+    policy.card = card  # type: ignore[attr-defined]
+    if layout is None and card is not None and card.layout is not None \
+            and card.layout.size == getattr(policy, "obs_size", None):
+        layout = card.layout  # (a card that disagrees with the network describes nothing)
     if layout is not None:
         policy.observation_layout = layout  # type: ignore[attr-defined]
     return policy
@@ -209,7 +216,9 @@ def check_untrusted_load(path: str | Path) -> None:
     only its entry list, metadata and the JSON of its ``data`` (no torch): for callers that
     must refuse a model before any side effect."""
     path = Path(path)
-    _env_fields(path, read_meta(path).get("env_fields"))
+    meta = read_meta(path)
+    _env_fields(path, meta.get("env_fields"))
+    read_card(path, meta)
     if not has_numpy_actor(path):
         from boids_env.policies.sb3_zip import actor_plan
 

@@ -14,6 +14,7 @@ import re
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -182,6 +183,68 @@ def _cmd_curves(args: argparse.Namespace) -> int:
     return 0
 
 
+def _card_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("card", help="what a learned model was made for (its model card)",
+                       description="Shows the card a model zip carries: the robots, scenes, "
+                       "crowds, leaders, group sizes and speeds it was trained and validated "
+                       "on, its sensing and its validation figures (a zip without one: the "
+                       "card its training config describes). Without MODEL, lists the shipped "
+                       "models. --write puts a card into the zip, everything else in it kept "
+                       "byte for byte.")
+    p.add_argument("model", nargs="?", default=None,
+                   help="a shipped model's name (learned, learned-scenes, ...) or a zip")
+    p.add_argument("--json", action="store_true", help="the card as JSON")
+    p.add_argument("--write", action="store_true",
+                   help="write the card into the zip: the one its training config describes, "
+                   "or --from's")
+    p.add_argument("--from", dest="source", default=None, metavar="CARD.json",
+                   help="with --write: the card to write (e.g. boids card MODEL --json, edited "
+                   "to add validation figures)")
+    p.set_defaults(func=_cmd_card)
+
+
+def _cmd_card(args: argparse.Namespace) -> int:
+    import json
+
+    from boids_env.policies.cards import CARD_LIMIT, ModelCard
+    from boids_env.policies.registry import MODELS, model_card, shipped_cards
+    from boids_env.train.cards import write_card
+    from boids_env.untrusted import parse_json, read_text
+
+    if args.model is None:
+        if args.write or args.json or args.source:
+            raise ValueError("--json, --write and --from need a MODEL")
+        cards = shipped_cards()
+        for name, path in MODELS.items():
+            card = cards.get(name)
+            print(f"{name:<16} {path.name:<16} {card.summary if card else '(no card)'}")
+        return 0
+    path = MODELS.get(args.model, Path(args.model))
+    if not path.is_file():
+        raise FileNotFoundError(f"model not found: {args.model} (a shipped model: "
+                                f"{', '.join(MODELS)}; or a model zip)")
+    if args.source is not None and not args.write:
+        raise ValueError("--from names the card to write: give --write too")
+    card = model_card(path)
+    if args.write:
+        if args.source is not None:
+            where = f"model card {args.source}"
+            card = ModelCard.from_dict(parse_json(read_text(args.source, where, CARD_LIMIT),
+                                                  where))
+        if card is None:
+            raise ValueError(f"{path} holds no training config to derive a card from: give "
+                             f"one with --from CARD.json")
+        write_card(path, card)
+        print(f"wrote the card into {path}")
+    if card is None:
+        print(f"{path} carries no card and no training config (saved outside boids train)")
+    elif args.json:
+        print(json.dumps(card.to_dict(), indent=1))
+    else:
+        print("\n".join(card.lines()))
+    return 0
+
+
 EXAMPLES = """\
 examples:
   boids run --seed 0 --video                 the study's flock, its metrics and a GIF
@@ -191,6 +254,7 @@ examples:
   boids eval --policy reynolds --policy learned --out runs/eval
   boids train --config ppo_safe --timesteps 200000 --out runs/train
   boids curves runs/train
+  boids card learned                         what a model was made for
 
 boids COMMAND --help describes each command's options."""
 """Shown under ``boids --help``."""
@@ -238,6 +302,7 @@ def build_parser() -> argparse.ArgumentParser:
     eval_cli.add_commands(sub)
     _train_parser(sub)
     _curves_parser(sub)
+    _card_parser(sub)
     return parser
 
 
@@ -254,7 +319,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     try:
         _check_out(args)
-        return int(args.func(args))
+        with _one_line_warnings(args.command):
+            return int(args.func(args))
     except KeyboardInterrupt:
         out = getattr(args, "out", None)
         # eval and train keep what they finished (a rerun resumes); a run writes all or nothing
@@ -284,6 +350,25 @@ def _deferred_ctrl_c() -> Iterator[list[bool]]:
         yield interrupted
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+@contextlib.contextmanager
+def _one_line_warnings(command: str) -> Iterator[None]:
+    """Shows a model-card warning (a model run outside what it was made for) as one line,
+    ``boids run: warning: ...``, on stderr; other warnings as Python shows them."""
+    shown = warnings.showwarning
+
+    def show(message: Any, category: type[Warning], *args: Any, **kwargs: Any) -> None:
+        if category.__name__ == "ModelCardWarning":  # (not imported: the command's own)
+            print(f"boids {command}: warning: {message}", file=sys.stderr)
+        else:
+            shown(message, category, *args, **kwargs)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = shown
 
 
 def _check_out(args: argparse.Namespace) -> None:

@@ -26,6 +26,7 @@ from stable_baselines3.common.vec_env import VecMonitor
 
 from boids_env.eval import folder
 from boids_env.files import atomic_path, read_zip_entry, write_json
+from boids_env.policies.cards import CARD_KEY
 from boids_env.policies.registry import SB3_ENTRIES
 from boids_env.policies.sb3_policy import algorithm_class, read_meta, write_meta
 from boids_env.train.callbacks import (
@@ -34,6 +35,7 @@ from boids_env.train.callbacks import (
     TrainingMetricsCallback,
     TrainingSummary,
 )
+from boids_env.train.cards import training_card
 from boids_env.train.config import TrainConfig
 from boids_env.train.resume import load_checkpoint
 from boids_env.train.vec_env import CopySpec, FlockVecEnv
@@ -111,16 +113,17 @@ def make_vec_env(config: TrainConfig) -> FlockVecEnv:
 
 
 def model_meta(config: TrainConfig) -> dict[str, Any]:
-    """The ``boids.json`` entry written into every model zip of the run, with the observation
-    layout the model reads (its named blocks), so that an env built otherwise is refused by
-    name rather than fed the wrong numbers."""
+    """The ``boids.json`` entry written into every model zip of the run (final, best and
+    checkpoints), with the observation layout the model reads (its named blocks), so that an
+    env built otherwise is refused by name rather than fed the wrong numbers, and the model's
+    card (what it was trained on: :func:`~boids_env.train.cards.training_card`)."""
     from boids_env.config import EnvConfig
     from boids_env.observations import layout_of
 
     layout = layout_of(EnvConfig.from_kwargs(**config.env_fields))
     return {"algorithm": config.algorithm, "env_fields": dict(config.env_fields),
             "observation_layout": [list(block) for block in layout.blocks],
-            "train_config": config.to_dict()}
+            "train_config": config.to_dict(), CARD_KEY: training_card(config).to_dict()}
 
 
 DATA_LIMIT = 16 << 20

@@ -1,11 +1,12 @@
-"""The generated reference pages: config fields, CLI, observation layout, metrics.
+"""The generated reference pages: config fields, CLI, observation layout, metrics, model cards.
 
 Every page is built from the code at build time, never committed as text: the config tables
 from the dataclasses (their fields, types, defaults and field docstrings) and from the range
 checks their validation makes (recorded with :func:`boids_env.checks.recorded`), the CLI page
 from the ``boids`` argparse parser, the observation page from the observation layout and the
 env's observation space, the metrics page from what :func:`boids_env.metrics.episode_metrics`
-returns and the docstrings that name each key.
+returns and the docstrings that name each key, the model cards page from the cards in the
+shipped model zips.
 
 MkDocs runs the hooks here (``hooks:`` in ``mkdocs.yml``): :func:`on_config` lays out the
 import tree for mkdocstrings, :func:`on_files` adds the generated pages, :func:`on_page_content`
@@ -373,6 +374,49 @@ def observations_page() -> str:
                          _bounds(space.high[block], width, unit),
                          cell(BLOCK_MEANINGS[name])))
         parts.append(table(("block", "indices", "size", "low", "high", "meaning"), rows) + "\n")
+    return "".join(parts)
+
+
+# --------------------------------------------------------------------------- model cards
+@page("reference/models.md")
+def models_page() -> str:
+    from boids_env.policies.cards import LEADER_WORDS
+    from boids_env.policies.registry import MODELS, shipped_cards
+
+    cards = shipped_cards()
+    parts = [GENERATED, "# Model cards\n\n",
+             "Every shipped model carries a card in its zip: what it was trained and validated "
+             "on, its sensing and its validation figures (`boids card MODEL` prints one; "
+             "[learned followers](../explanation/learned-followers.md#model-cards) says how "
+             "cards are made and used). `boids run` and `boids eval` warn in one line when an "
+             "env lies outside a model's card (robot, scene, crowd, leader, group size, "
+             "leader speed, standstills) and name the shipped model made for it. This page is "
+             "generated from the cards in the zips.\n\n"]
+    rows = []
+    for name, path in MODELS.items():
+        if name not in cards:
+            rows.append((code(name), code(path.name), "(no card)", *["—"] * 7))
+            continue
+        card = cards[name]
+        rows.append((code(name), code(path.name), cell(card.summary),
+                     cell(card.scene_words()), "{}–{}".format(*card.group_sizes),
+                     "{:g}–{:g}".format(*card.leader_speeds),
+                     cell(", ".join(LEADER_WORDS.get(k, k) for k in card.leaders)
+                          + ("; stands still" if card.standstills else "")),
+                     str(max(card.crowds)), "on" if card.safety_filter else "off",
+                     str(card.layout.size if card.layout else "—")))
+    parts.append(table(("model", "file", "made for", "scenes", "robots", "leader m/s",
+                        "leaders", "crowd", "safety filter", "obs. values"), rows) + "\n")
+    for name, card in cards.items():
+        parts.append(f"\n## {name}\n\n{cell(card.summary)}. Recipe: {cell(card.recipe)}. "
+                     f"Robots: {', '.join(card.robots)} ({card.drive}). Sensing: "
+                     f"{cell(card.sensing)}.\n\n")
+        rows = [(cell(v.suite), cell(v.case),
+                 cell(", ".join(f"{k} {x:g}" for k, x in v.figures))) for v in card.validation]
+        if rows:
+            parts.append(table(("suite", "case", "figures"), rows) + "\n\n")
+        for source in dict.fromkeys(v.source for v in card.validation if v.source):
+            parts.append(f"Figures from {cell(source)}.\n\n")
     return "".join(parts)
 
 

@@ -158,6 +158,18 @@ def test_the_default_layout_is_the_studys(reference):
     assert "| [-1, -1, -3, -3, 0] per slot | [1, 1, 3, 3, 1] per slot |" in default
 
 
+# ------------------------------------------------------------------ model cards page
+def test_the_model_cards_page_shows_every_shipped_model_from_its_card(reference):
+    from boids_env.policies.registry import MODELS
+
+    page = reference.models_page()
+    for name, path in MODELS.items():
+        assert f"| `{name}` | `{path.name}` |" in page and f"\n## {name}\n" in page, name
+    learned = page.split("\n## learned\n")[1].split("\n## ")[0]
+    assert "| generalisation | default | total 0.917, touching 0, wall 0," in learned
+    assert "trained on the open arena only" in page
+
+
 # ------------------------------------------------------------------ metrics page
 def test_every_metric_an_episode_reports_is_on_the_page_with_a_meaning(reference):
     from boids_env import parallel_env

@@ -39,7 +39,12 @@ def test_model_zip_carries_metadata_and_loads_as_a_policy(tmp_path):
     assert meta["observation_layout"] == [["own_velocity", 2], ["leader_position", 2],
                                           ["leader_velocity", 2], ["neighbours", 20]]
     assert (tmp_path / "best_model.zip").is_file()
-    assert len(list((tmp_path / "checkpoints").glob("model_*_steps.zip"))) >= 1
+    checkpoints = list((tmp_path / "checkpoints").glob("model_*_steps.zip"))
+    assert len(checkpoints) >= 1
+    for saved in (path, tmp_path / "best_model.zip", *checkpoints):  # each carries its card
+        card = read_meta(saved)["card"]
+        assert card["group_sizes"] == [4, 5] and card["scenes"] == ["arena"], saved
+        assert card["observation"] == meta["observation_layout"], saved
     evals = (tmp_path / "evaluations.csv").read_text().splitlines()
     assert evals[0] == ("timesteps,V_sep,V_coh,V_align,touching_fraction,contacts_follower,"
                         "contacts_leader,wall_fraction,mean_nn_distance,total,cost")
