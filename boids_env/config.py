@@ -217,11 +217,13 @@ class ObservationConfig:
     route_cell: float = 0.1
     """Cell size (m) of the route sensing's grid (finer: narrower doors resolved, slower)."""
     route_leader: bool = False
-    """Sense the leader along its route: the ``leader_position`` block holds the route's
-    direction × its length (clipped to the scene's span like the straight line) instead of
-    the straight-line offset, so a follower behind a wall sees the leader through the door.
-    Where the leader is in sight the two nearly agree. Needs ``route_sensing`` (whose block
-    still follows, valid flag included). Opt-in, for learned followers in buildings
+    """Sense a leader out of sight along its route: for a follower that does not see the
+    leader through free space (walls inflated by the robot radius, the route grid's cells),
+    the ``leader_position`` block holds the route's direction × its length (clipped to the
+    scene's span like the straight line) instead of the straight-line offset, so a follower
+    behind a wall finds the leader through the door; a follower that sees the leader reads
+    the straight line, bit for bit as without this flag. Needs ``route_sensing`` (whose
+    block still follows, valid flag included). Opt-in, for learned followers in buildings
     (``learned-buildings``)."""
 
     def __post_init__(self) -> None:

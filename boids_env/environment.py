@@ -110,8 +110,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     (touching a robot) and ``reward_wall`` (centre within ``wall_distance``, 0.15 m, of a
     wall); these keys are always in the infos (0 under the study's reward). The opt-in
     ``reward_gap`` weight adds −w·(distance to the leader − 2.25 m)₊·dt, a dense cohesion
-    signal (info key ``reward_gap``; with ``route_leader`` the distance is the route's
-    length, so a follower behind a wall is as far as its way round). The opt-in
+    signal (info key ``reward_gap``; with ``route_leader``, for a follower that does not see
+    the leader, the distance is the route's length: behind a wall it is as far as its way
+    round). The opt-in
     ``reward_intrusion`` weight adds −w·dt while
     a follower is within ``intrusion_distance`` (1.2 m, Hall's personal zone) of the leader
     or a pedestrian (info key ``reward_intrusion``), for following a person.
@@ -461,14 +462,16 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         """The cohesion-gap reward term (1, F): −weight · metres beyond the cohesion threshold
         · dt (called when its weight is set)."""
         cfg = self.episode_config
-        if cfg.observation.route_leader:  # metres along the route, as the follower senses
-            from boids_env.world.route import route_grid, sense_route
+        gap = metrics.cohesion_gap(positions, cfg.metrics.cohesion_threshold)
+        if cfg.observation.route_leader:  # out of sight: metres along the route, as sensed
+            from boids_env.world.route import leader_in_sight, route_grid, sense_route
 
             grid = route_grid(cfg.scene, cfg.world.robot_radius, cfg.observation.route_cell)
-            length = sense_route(grid, positions)[1]
-            gap = np.maximum(length - cfg.metrics.cohesion_threshold, 0.0)
-        else:
-            gap = metrics.cohesion_gap(positions, cfg.metrics.cohesion_threshold)
+            hidden = ~leader_in_sight(grid, positions)
+            if hidden.any():
+                length = sense_route(grid, positions)[1]
+                gap = np.where(hidden, np.maximum(length - cfg.metrics.cohesion_threshold, 0.0),
+                               gap)
         return self._gap_scale * gap[None]
 
     def _intrusion_term(self, world: World) -> npt.NDArray[np.float64]:

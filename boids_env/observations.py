@@ -45,7 +45,7 @@ from scipy.spatial import cKDTree
 from boids_env import kernels
 from boids_env.vectors import times_matrix
 from boids_env.world import geometry as geo
-from boids_env.world.route import ROUTE_CELL, route_grid, sense_route
+from boids_env.world.route import ROUTE_CELL, RouteGrid, leader_in_sight, route_grid, sense_route
 from boids_env.world.route import SIZE as ROUTE_SIZE
 from boids_env.world.scene import Scene
 
@@ -709,11 +709,15 @@ class Observer:
         obs = build_observations(positions, velocities, self.layout, cfg.horizon,
                                  cfg.velocity_bound, self.reach, self.frame, self.sensors,
                                  crowd, headings)
-        if cfg.route_leader:  # the leader as reached along the route (its block follows)
-            route = obs[:, self.layout.block("route")].astype(np.float64)
-            along = route[:, 0:2] * route[:, 2:3]
-            obs[:, self.layout.leader_position] = np.minimum(np.maximum(along, -self.reach),
-                                                             self.reach)
+        if cfg.route_leader:  # the leader out of sight: as reached along its route
+            hidden = ~leader_in_sight(self._route_grid(), positions)
+            if hidden.any():
+                route = obs[hidden][:, self.layout.block("route")].astype(np.float64)
+                along = np.minimum(np.maximum(route[:, 0:2] * route[:, 2:3], -self.reach),
+                                   self.reach)
+                rows = np.flatnonzero(hidden)
+                obs[rows, self.layout.leader_position.start] = along[:, 0]
+                obs[rows, self.layout.leader_position.start + 1] = along[:, 1]
         if cfg.obs_noise > 0:
             if self._rng is None:
                 raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")
@@ -723,6 +727,10 @@ class Observer:
         if cfg.relative_actions:
             self._leader_velocity = obs[:, self.layout.leader_velocity].astype(np.float64)
         return obs
+
+    def _route_grid(self) -> RouteGrid:
+        assert self.sensors.scene is not None
+        return route_grid(self.sensors.scene, self.sensors.robot_radius, self.sensors.route_cell)
 
     def _noise(self, obs: npt.NDArray[np.float32], std: float) -> FloatArray:
         """Sensing noise for ``obs``: Gaussian on every position, velocity and range, none on

@@ -208,6 +208,27 @@ def _in_sight_ahead(grid: RouteGrid, field: RouteField, node: npt.NDArray[np.int
     return best
 
 
+def leader_in_sight(grid: RouteGrid, positions: FloatArray) -> npt.NDArray[np.bool_]:
+    """Whether each follower sees the leader through free cells (F,): every point of the
+    straight segment between them, sampled every half cell (their own spots left out), lies
+    in a free cell, so a robot of the grid's radius could drive it. ``positions`` (N, 2),
+    the leader first."""
+    positions = np.asarray(positions, dtype=float)
+    leader, points = positions[0], positions[1:]
+    offset = leader - points
+    dist = np.sqrt(offset[:, 0] * offset[:, 0] + offset[:, 1] * offset[:, 1])
+    samples = max(2, math.ceil(float(dist.max(initial=0.0)) / (grid.cell / 2)))
+    t = (np.arange(1, samples) / samples)[None, :, None]
+    along = points[:, None, :] + t * offset[:, None, :]  # (F, S, 2)
+    h, w = grid.free.shape
+    col = np.floor((along[..., 0] - grid.origin[0]) / grid.cell).astype(np.intp)
+    row = np.floor((along[..., 1] - grid.origin[1]) / grid.cell).astype(np.intp)
+    inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    free = np.where(inside, grid.free.ravel()[np.clip(row, 0, h - 1) * w
+                                              + np.clip(col, 0, w - 1)], False)
+    return free.all(axis=1)
+
+
 def sense_route(grid: RouteGrid, positions: FloatArray) -> tuple[FloatArray, FloatArray,
                                                                   npt.NDArray[np.bool_]]:
     """Each follower's way to the leader.

@@ -141,8 +141,23 @@ def test_route_leader_shows_the_leader_through_the_door():
     assert cosine > 0.9, routed[0]  # towards the door, not the leader's bearing
     # as far as the way round: over the door (2.24 m + 2.24 m), not the 2 m through the wall
     assert np.linalg.norm(routed[0]) > 4.0, routed[0]
-    # in sight of the leader the two agree (to the route grid's cells)
-    np.testing.assert_allclose(routed[1], straight[1], atol=0.15)
+    # in sight of the leader it reads the straight line, bit for bit
+    np.testing.assert_array_equal(routed[1], straight[1])
+
+
+def test_leader_in_sight_through_free_space_only():
+    from boids_env.world.route import leader_in_sight
+
+    grid = route_grid(two_rooms(1.0), RADIUS)
+    positions = np.array([[1.0, -1.0],     # the leader, east of the wall
+                          [2.5, 1.5],      # same room
+                          [-1.0, -1.0],    # west, the wall between
+                          [-1.0, 1.0],     # west, straight through the door's middle
+                          [-1.0, 1.45]])   # west, the segment grazes the door's jamb
+    # (1, -1) -> (-1, 1.45) crosses x = 0 at y = 0.225: inside the wall below the door
+    assert leader_in_sight(grid, positions).tolist() == [True, False, False, False]
+    positions[0] = (1.0, 1.0)  # the leader in the doorway's line: the door's middle is free
+    assert leader_in_sight(grid, positions).tolist() == [True, False, True, True]
 
 
 def test_route_leader_needs_route_sensing():
