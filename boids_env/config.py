@@ -332,6 +332,10 @@ class MetricsConfig:
     parked_after: float = 2.0
     """Seconds the leader must have stood still before ``reward_parked`` applies (the
     followers first settle around it)."""
+    parked_within: float = 0.0
+    """``reward_parked`` applies only to followers within this distance (m) of the leader
+    (along the route for one that does not see it, with ``route_leader``): one still far
+    behind a standing leader should come, not stop. 0: to every follower (as before)."""
     safety_distance: float = 0.3
     """Centre distance (m) under which ``reward_proximity`` applies. Not in the study."""
     wall_distance: float = 0.15
@@ -354,6 +358,8 @@ class MetricsConfig:
             _set(self, name, _number(name, getattr(self, name), 0.0, 1000))
         _set(self, "parked_after", _number("parked_after", self.parked_after, 0.0, 3600,
                                            unit="s"))
+        _set(self, "parked_within", _number("parked_within", self.parked_within, 0.0, 1000,
+                                            unit="m"))
         if self.separation_threshold >= self.cohesion_threshold:
             raise ValueError(f"separation_threshold ({self.separation_threshold} m) must be "
                              f"below cohesion_threshold ({self.cohesion_threshold} m)")

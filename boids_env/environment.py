@@ -118,7 +118,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     or a pedestrian (info key ``reward_intrusion``), for following a person.
     The opt-in ``reward_parked`` weight adds −w·speed·dt
     while the leader has stood still for more than ``parked_after`` (info key
-    ``reward_parked``): followers park around a leader who stops.
+    ``reward_parked``; with ``parked_within`` only for followers that near the leader):
+    followers park around a leader who stops.
 
     ## Starting State
     Leader at (0, 0), followers on the study's 0.5 m grid behind it with a seeded jitter of
@@ -461,18 +462,24 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     def _gap_term(self, positions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """The cohesion-gap reward term (1, F): −weight · metres beyond the cohesion threshold
         · dt (called when its weight is set)."""
+        threshold = self.episode_config.metrics.cohesion_threshold
+        gap = np.maximum(self._leader_distances(positions) - threshold, 0.0)
+        return self._gap_scale * gap[None]
+
+    def _leader_distances(self, positions: npt.NDArray[np.float64]
+                          ) -> npt.NDArray[np.float64]:
+        """Each follower's distance to the leader (F,): the straight line, or with
+        ``route_leader`` the route's length for a follower that does not see the leader."""
         cfg = self.episode_config
-        gap = metrics.cohesion_gap(positions, cfg.metrics.cohesion_threshold)
-        if cfg.observation.route_leader:  # out of sight: metres along the route, as sensed
+        distance = metrics.leader_distance(positions)
+        if cfg.observation.route_leader:
             from boids_env.world.route import leader_in_sight, route_grid, sense_route
 
             grid = route_grid(cfg.scene, cfg.world.robot_radius, cfg.observation.route_cell)
             hidden = ~leader_in_sight(grid, positions)
             if hidden.any():
-                length = sense_route(grid, positions)[1]
-                gap = np.where(hidden, np.maximum(length - cfg.metrics.cohesion_threshold, 0.0),
-                               gap)
-        return self._gap_scale * gap[None]
+                distance = np.where(hidden, sense_route(grid, positions)[1], distance)
+        return distance
 
     def _intrusion_term(self, world: World) -> npt.NDArray[np.float64]:
         """The intrusion reward term (1, F): −weight · dt while a follower's centre is within
@@ -489,6 +496,11 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if self._still_steps <= self._parked_steps:
             return np.zeros((1, len(velocities) - 1))
         speed = np.sqrt(np.einsum("fd,fd->f", velocities[1:], velocities[1:]))
+        within = self.episode_config.metrics.parked_within
+        if within > 0:  # only the followers already around the leader park
+            world = self._world
+            assert world is not None
+            speed = np.where(self._leader_distances(world.positions) <= within, speed, 0.0)
         return self._parked_scale * speed[None]
 
     def _parse_actions(self, actions: Mapping[AgentID, npt.ArrayLike]

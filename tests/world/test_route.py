@@ -180,3 +180,19 @@ def test_route_leader_counts_the_gap_along_the_route():
     assert gaps[False] == 0.0
     dt = 0.1
     assert gaps[True] < -10.0 * dt * 2.0, gaps  # at least 2 m beyond the threshold
+
+
+def test_parked_within_leaves_a_far_follower_free_to_come():
+    velocities = np.array([[0.0, 0.0], [0.3, 0.4], [0.0, 0.5]])  # leader, near, far
+    terms = {}
+    for within in (0.0, 2.25):
+        env = BoidsEnv(robots=3, reward="safe", reward_parked=30.0, parked_within=within)
+        env.reset(seed=0)
+        env._still_steps = 10**6  # the leader has stood still for long
+        env._leader_distances = lambda positions: np.array([1.0, 5.0])
+        terms[within] = env._parked_term(velocities)[0]
+    dt = 0.1
+    np.testing.assert_allclose(terms[0.0], [-30.0 * dt * 0.5, -30.0 * dt * 0.5])
+    np.testing.assert_allclose(terms[2.25], [-30.0 * dt * 0.5, 0.0])
+    with pytest.raises(ValueError, match="parked_within"):
+        EnvConfig.from_kwargs(parked_within=-1.0)
