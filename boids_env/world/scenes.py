@@ -195,8 +195,8 @@ def scene_key(spec: str) -> str:
 
 def scene_files(spec: str) -> tuple[Path, ...]:
     """The files scene ``spec`` reads (resolved): none for a built-in, the shapes file, or a
-    map's YAML and its image."""
-    if spec in BUILTIN or not spec:
+    map's YAML and its image; none for a generated floor plan."""
+    if spec in BUILTIN or not spec or floorplans.parse(spec) is not None:
         return ()
     path = Path(spec).resolve()
     if path.suffix.lower() in (".yaml", ".yml"):
