@@ -122,10 +122,11 @@ def make_person(scenario: ScenarioConfig, scene: Scene, leader: Leader,
     from boids_env.world.people import People
 
     sc = scenario
+    walk = None
     if sc.leader == "trajectory":
         assert sc.leader_trajectory is not None
-        times, points = read_walk(sc.leader_trajectory)
-        leader = TrajectoryLeader(times, points, dt)
+        walk = read_walk(sc.leader_trajectory)
+        leader = TrajectoryLeader(*walk, dt)
     walking = sc.leader == "person" and sc.path != "external"
     if not walking and not sc.crowd:
         return leader, None
@@ -137,7 +138,7 @@ def make_person(scenario: ScenarioConfig, scene: Scene, leader: Leader,
                     goals=goals, speed=sc.leader_speed, gait_variation=sc.gait_variation,
                     goal_pause=0.0 if curve else sc.goal_pause, startup_time=sc.startup_time,
                     crowd=sc.crowd, crowd_speed=sc.crowd_speed, radius=sc.person_radius,
-                    keep_clear=initial)
+                    keep_clear=initial, walk=walk)
     if walking:
         assert path is not None
         leader = PersonLeader(people, np.vstack([initial[:1], goals]), sc.leader_speed,
