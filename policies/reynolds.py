@@ -127,10 +127,23 @@ def proxemic_leader_force(leader_offset: FloatArray, leader_velocity: FloatArray
         leader_velocity: (F, 2) the person's velocity as each follower observes it (m/s).
         space: the personal space's radius s (m).
     """
-    rx, ry = leader_offset[:, 0], leader_offset[:, 1]
+    return ring_force(leader_offset, space) + path_push(leader_offset, leader_velocity, space)
+
+
+def ring_force(offset: FloatArray, space: float) -> FloatArray:
+    """``offset`` (F, 2) shortened by ``space`` along itself: towards the circle of radius
+    ``space`` around its end (from inside: away from it)."""
+    rx, ry = offset[:, 0], offset[:, 1]
     dist = np.sqrt(rx * rx + ry * ry)
     scale = np.where(dist > 0, 1.0 - space / np.where(dist > 0, dist, 1.0), 0.0)
-    ring = leader_offset * scale[:, None]
+    return offset * scale[:, None]
+
+
+def path_push(leader_offset: FloatArray, leader_velocity: FloatArray, space: float
+              ) -> FloatArray:
+    """The sideways push (F, 2) out of the strip of half-width ``space`` ahead of a walking
+    leader (the proxemics-aware leader term's second part, module docstring)."""
+    rx, ry = leader_offset[:, 0], leader_offset[:, 1]
     vx, vy = leader_velocity[:, 0], leader_velocity[:, 1]
     speed = np.sqrt(vx * vx + vy * vy)
     walking = speed >= WALKING_SPEED
@@ -142,7 +155,7 @@ def proxemic_leader_force(leader_offset: FloatArray, leader_velocity: FloatArray
         np.abs(across) < space)
     side = np.where(across >= 0, 1.0, -1.0)
     push = np.where(ahead, (space - np.abs(across)) * side, 0.0)
-    return ring + np.stack([-ey * push, ex * push], axis=1)
+    return np.stack([-ey * push, ex * push], axis=1)
 
 
 def pedestrian_points(slots: FloatArray, radius: float) -> tuple[FloatArray,
@@ -270,6 +283,26 @@ def bound_params(params: ReynoldsParams, own: frozenset[str] | set[str], config:
     return dataclasses.replace(params, **changes) if changes else params
 
 
+STUDY_RADIUS = 0.036
+"""The study's Sphero's radius (m): the size the distances of a preset are given for."""
+
+
+def sized_params(params: ReynoldsParams, radius: float, sized_for: float = STUDY_RADIUS
+                 ) -> ReynoldsParams:
+    """``params``, whose distances are for robots of radius ``sized_for`` (the study's Sphero
+    unless given), sized for robots of ``radius`` (m) (``scale_to_robot``): centre-to-centre
+    distances (``desired_separation``, ``personal_space`` when on) 2·(radius − sized_for)
+    longer, the centre-to-surface ``obstacle_distance`` radius − sized_for longer, so the free
+    gaps stay the same. ``params`` itself for the same radius."""
+    grow = radius - sized_for
+    if grow == 0.0:
+        return params
+    return dataclasses.replace(
+        params, desired_separation=max(params.desired_separation + 2 * grow, 0.0),
+        personal_space=max(params.personal_space + 2 * grow, 0.0) if params.personal_space
+        else 0.0, obstacle_distance=max(params.obstacle_distance + grow, 1e-3))
+
+
 class ReynoldsPolicy(BatchPolicy):
     """Reynolds + leader controller of the study, reading observations only.
 
@@ -289,6 +322,7 @@ class ReynoldsPolicy(BatchPolicy):
     def __init__(self, preset: str = "paper", *, layout: ObservationLayout | None = None,
                  **overrides: Any) -> None:
         self.params = reynolds_params(preset, **overrides)
+        self._sized_for = STUDY_RADIUS  # the robot radius self.params' distances are for
         defaults = ReynoldsParams()
         # the values the controller itself sets (given, or its preset's own): kept when bound
         # where the env allows them, the rest taken from the env
@@ -321,6 +355,9 @@ class ReynoldsPolicy(BatchPolicy):
         self.pedestrian_radius = config.scenario.person_radius
         self.robot_radius = config.world.robot_radius
         self.params = bound_params(self.params, self._own, config)
+        if self.params.scale_to_robot:
+            self.params = sized_params(self.params, self.robot_radius, self._sized_for)
+            self._sized_for = self.robot_radius
 
     def reset(self, seed: int | None = None) -> None:
         self._steps = 0
@@ -353,6 +390,10 @@ class ReynoldsPolicy(BatchPolicy):
                                                      p.personal_space)
         if p.follow_route:
             forces["leader"] = route_leader_force(obs, layout)
+            if p.personal_space > 0:  # the ring and the clear path ahead, along the route
+                forces["leader"] = ring_force(forces["leader"], p.personal_space) + path_push(
+                    obs[:, layout.leader_position], obs[:, layout.leader_velocity],
+                    p.personal_space)
         if self.avoid or people:
             static = layout.static_slots(obs) if self.avoid else np.zeros((len(obs), 0, 3))
             points, valid, moving = static[..., :2], static[..., 2] > 0.5, own
