@@ -404,12 +404,21 @@ building ending 10 s after the leader's arrival (as ``buildings``); 5 seeds. Bar
 ≤ 1 %, walls ≤ 1 %, no follower lost. Run it for ``reynolds``, ``reynolds@route`` and
 ``reynolds@scaled``."""
 
+CROWD_BUILDINGS = Suite("crowd_buildings", (
+    Case("square, crowd 8", "crowd", "scene", "square", {"robots": 13, "crowd": 8}),
+    *(Case(f"floorplan {s}, crowd 8", "crowd", "scene", f"floorplan {s}",
+           {"robots": 13, "crowd": 8, "tail_time": 10.0, "scene": f"floorplan:{s}"})
+      for s in ROBOTS_BUILDINGS_PLANS[:2])))
+"""The ``scaled`` Reynolds preset's crowd cases (picked before it was run on any crowd): 13
+Spheros (crowds walk among holonomic robots only) and 8 pedestrians on the study's square and
+two held-out floor plans (as ``robots_buildings``); 5 seeds."""
+
 SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION,
           "scenes": SCENES, "buildings": BUILDINGS, "deployment": DEPLOYMENT,
           "validation": VALIDATION, "person": PERSON,
           "person_learned": PERSON_LEARNED, "robot_types": ROBOT_TYPES,
           "turtlebot_generalisation": TURTLEBOT_GENERALISATION,
-          "robots_buildings": ROBOTS_BUILDINGS}
+          "robots_buildings": ROBOTS_BUILDINGS, "crowd_buildings": CROWD_BUILDINGS}
 
 
 def load_suite(spec: str | Path) -> Suite:

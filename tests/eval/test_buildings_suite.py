@@ -64,3 +64,17 @@ def test_the_robots_buildings_suite_holds_turtlebots_and_gritsbots_on_held_out_p
     assert plans <= set(BUILDING_SEEDS) and not plans & {3, 5, 8}  # tuned on 3, 5, 8
     for case in suite.cases:  # every case builds (the robots' start fits the plan)
         BoidsEnv(EnvConfig.from_kwargs(**case.env)).reset(seed=0)
+
+
+def test_the_crowd_buildings_suite_has_eight_pedestrians_in_every_case():
+    suite = SUITES["crowd_buildings"]
+    assert [c.env["crowd"] for c in suite.cases] == [8, 8, 8]
+    assert [c.env.get("scene", "arena") for c in suite.cases] == [
+        "arena", "floorplan:1004", "floorplan:1011"]
+    assert input_digests_of(suite) == {}
+
+
+def input_digests_of(suite):
+    from boids_env.eval.runner import input_digests
+
+    return input_digests(suite)
