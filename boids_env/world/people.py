@@ -8,7 +8,9 @@ The person walks to its path's corners in turn at a preferred speed that varies 
 (a seeded Ornstein–Uhlenbeck factor around 1) and stops for a seeded while at each corner;
 pedestrians walk to random goals in the walkable area, a new one on arrival. Nobody here sees
 the robots (0.18 kg robots do not steer people): the world moves the people as kinematic
-bodies, and robots collide with them rigidly.
+bodies, and robots collide with them rigidly. A replayed walk (``leader="trajectory"``) among
+a crowd is a standing agent of the simulation on the disc the person sweeps in each period,
+put in anew every period, so the pedestrians walk around it.
 
 Deterministic: JuPedSim's model is seeded from the episode's stream and every draw here
 comes from one ``np.random.Generator``; the same seed gives the same walk bit for bit (JuPedSim

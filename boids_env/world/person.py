@@ -1,9 +1,13 @@
 """A person as the leader: walked by the pedestrian model (``leader="person"``) or replayed
 from a recorded walk (``leader="trajectory"``, a CSV of ``t, x, y``).
 
-Both are kinematic: the world moves robot 0 exactly by the command these leaders return, the
-displacement to the person's next position over one control period, so the leader's position
-after each step is the walk's own (to rounding).
+Both are commanded kinematically: the world moves robot 0 by the command these leaders return,
+the displacement to the person's next position over one control period, so the leader's
+position after each step is the walk's own, but for what robots pushing the person's 20 kN
+driven body move it (micrometres, corrected the next period). A replayed walk among a crowd
+(whose pedestrians are as heavy and as strongly driven) is a kinematic body that nothing
+pushes, on its walk to rounding, and the pedestrian model walks around it
+(:meth:`~boids_env.world.people.People._place_walker`).
 """
 
 from __future__ import annotations
