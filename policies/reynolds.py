@@ -17,6 +17,12 @@ through free space (the observation's ``route`` block, :mod:`boids_env.world.rou
 F_lead = d·L with d the route's unit direction and L its length, so a follower behind a wall
 seeks the door rather than the wall (the straight line where no free route exists).
 
+Beyond the study, preset ``scaled`` (issue 38) sizes the controller for the robot
+(``scale_to_robot``, :func:`sized_params`: the study's distances kept as free gaps between
+bodies) and follows the route with the proxemic leader term along it: F_lead = r − s·r/|r|
+with r the route term above, plus the push out of the leader's path ahead (below), so a
+follower steps aside for a leader backing out of a dead end instead of fleeing before it.
+
 Beyond the study (on in any scene but the study's empty arena, see ``obstacle_avoidance``):
 - obstacle   F_obs = −max_force · Σ_m s_m · n_m over the static slots m (n_m the unit vector
   towards the surface point at distance d_m, u_m = max(0, v·n_m) the approach speed),
