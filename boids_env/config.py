@@ -835,8 +835,10 @@ class ReynoldsParams:
     an env whose ``robot_radius`` r differs from the study's Sphero (r0 = 0.036 m), the
     centre-to-centre distances ``desired_separation`` and ``personal_space`` grow by 2·(r − r0)
     and the centre-to-surface ``obstacle_distance`` by r − r0, so the free gaps between bodies
-    stay the ones given for the Sphero (``robot_avoidance`` is a surface gap already). A
-    Sphero's parameters are unchanged."""
+    stay the ones given for the Sphero (``robot_avoidance`` is a surface gap already), and
+    ``obstacle_lookahead`` grows by the time the robot needs to turn a quarter turn (0 for a
+    holonomic one), so a robot that must turn to steer away starts that much earlier. A
+    holonomic Sphero's parameters are unchanged."""
 
     def __post_init__(self) -> None:
         if self.obstacle_avoidance is not None:
@@ -882,7 +884,7 @@ PRESETS: dict[str, ReynoldsParams] = {
     # ahead of the leader (the proxemic leader term along the route), so that robots larger
     # than a Sphero never pack into contact nor meet a leader backing out of a dead end.
     "scaled": ReynoldsParams(follow_route=True, robot_avoidance=0.15, personal_space=0.56,
-                             obstacle_lookahead=2.0, scale_to_robot=True),
+                             scale_to_robot=True),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
 

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from typing import Any
 
 import numpy as np
@@ -293,20 +294,36 @@ STUDY_RADIUS = 0.036
 """The study's Sphero's radius (m): the size the distances of a preset are given for."""
 
 
-def sized_params(params: ReynoldsParams, radius: float, sized_for: float = STUDY_RADIUS
-                 ) -> ReynoldsParams:
-    """``params``, whose distances are for robots of radius ``sized_for`` (the study's Sphero
-    unless given), sized for robots of ``radius`` (m) (``scale_to_robot``): centre-to-centre
-    distances (``desired_separation``, ``personal_space`` when on) 2·(radius − sized_for)
-    longer, the centre-to-surface ``obstacle_distance`` radius − sized_for longer, so the free
-    gaps stay the same. ``params`` itself for the same radius."""
-    grow = radius - sized_for
-    if grow == 0.0:
+def turn_time(world: Any) -> float:
+    """Seconds a robot of config section ``world`` needs to turn a quarter turn from rest:
+    π/2 at its top turn rate plus the ramp to it at its turn acceleration; 0 for a holonomic
+    robot (it needs no turn to change its direction of motion)."""
+    if world.drive == "holonomic" or world.max_turn_rate is None:
+        return 0.0
+    rate = float(world.max_turn_rate)
+    ramp = rate / float(world.max_turn_acceleration) if world.max_turn_acceleration else 0.0
+    return (math.pi / 2) / rate + ramp
+
+
+def sized_params(params: ReynoldsParams, radius: float, turn: float = 0.0,
+                 sized_for: tuple[float, float] = (STUDY_RADIUS, 0.0)) -> ReynoldsParams:
+    """``params``, whose distances are for robots of radius ``sized_for[0]`` and look-ahead
+    for robots turning a quarter turn in ``sized_for[1]`` s (the study's holonomic Sphero
+    unless given), sized for robots of ``radius`` (m) that turn in ``turn`` s
+    (``scale_to_robot``, :func:`turn_time`): centre-to-centre distances
+    (``desired_separation``, ``personal_space`` when on) 2·Δradius longer, the
+    centre-to-surface ``obstacle_distance`` Δradius longer, so the free gaps stay the same,
+    and the ``obstacle_lookahead`` Δturn longer, so a robot that must turn before it can steer
+    away starts that much earlier. ``params`` itself for the same robot."""
+    grow = radius - sized_for[0]
+    slower = turn - sized_for[1]
+    if grow == 0.0 and slower == 0.0:
         return params
     return dataclasses.replace(
         params, desired_separation=max(params.desired_separation + 2 * grow, 0.0),
         personal_space=max(params.personal_space + 2 * grow, 0.0) if params.personal_space
-        else 0.0, obstacle_distance=max(params.obstacle_distance + grow, 1e-3))
+        else 0.0, obstacle_distance=max(params.obstacle_distance + grow, 1e-3),
+        obstacle_lookahead=max(params.obstacle_lookahead + slower, 0.0))
 
 
 class ReynoldsPolicy(BatchPolicy):
@@ -328,7 +345,8 @@ class ReynoldsPolicy(BatchPolicy):
     def __init__(self, preset: str = "paper", *, layout: ObservationLayout | None = None,
                  **overrides: Any) -> None:
         self.params = reynolds_params(preset, **overrides)
-        self._sized_for = STUDY_RADIUS  # the robot radius self.params' distances are for
+        # the robot radius and quarter-turn time self.params' distances are for
+        self._sized_for = (STUDY_RADIUS, 0.0)
         defaults = ReynoldsParams()
         # the values the controller itself sets (given, or its preset's own): kept when bound
         # where the env allows them, the rest taken from the env
@@ -362,8 +380,9 @@ class ReynoldsPolicy(BatchPolicy):
         self.robot_radius = config.world.robot_radius
         self.params = bound_params(self.params, self._own, config)
         if self.params.scale_to_robot:
-            self.params = sized_params(self.params, self.robot_radius, self._sized_for)
-            self._sized_for = self.robot_radius
+            turn = turn_time(config.world)
+            self.params = sized_params(self.params, self.robot_radius, turn, self._sized_for)
+            self._sized_for = (self.robot_radius, turn)
 
     def reset(self, seed: int | None = None) -> None:
         self._steps = 0
