@@ -161,3 +161,20 @@ def test_a_replay_without_a_crowd_is_what_it_was_before_the_crowd_yielded():
         digest.update(np.round(env.snapshot().positions, 9).tobytes())
     assert digest.hexdigest() == (
         "9cd05146e1fd9167a5842d6440f5023f6164d271068588cb7aa05475ab3b91e9")
+
+
+def test_a_replay_among_a_crowd_pickles_mid_episode():
+    import pickle
+
+    env = parallel_env(scene="doorway", leader="trajectory", leader_trajectory="doorway_walk",
+                       crowd=8, robots=5)
+    env.reset(seed=1)
+    for _ in range(60):
+        env.step({a: np.full(2, 0.05) for a in env.agents})
+    clone = pickle.loads(pickle.dumps(env))
+    for step in range(40):
+        env.step({a: np.full(2, 0.05) for a in env.agents})
+        clone.step({a: np.full(2, 0.05) for a in clone.agents})
+        assert np.array_equal(env.snapshot().positions, clone.snapshot().positions), step
+        assert np.array_equal(env._world.pedestrian_positions,
+                              clone._world.pedestrian_positions), step
