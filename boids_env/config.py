@@ -849,6 +849,15 @@ class ReynoldsParams:
     point of the obstacle rule (served first, its approach speed × ``obstacle_lookahead``
     counted as nearer), so that a flock squeezed through a door or a corridor does not
     touch (not in the study; preset ``route``: 0.15). 0: off."""
+    scale_to_robot: bool = False
+    """Size the distances for the env's robot (not in the study; preset ``scaled``): bound to
+    an env whose ``robot_radius`` r differs from the study's Sphero (r0 = 0.036 m), the
+    centre-to-centre distances ``desired_separation`` and ``personal_space`` grow by 2·(r − r0)
+    and the centre-to-surface ``obstacle_distance`` by r − r0, so the free gaps between bodies
+    stay the ones given for the Sphero (``robot_avoidance`` is a surface gap already), and
+    ``obstacle_lookahead`` grows by the time the robot needs to turn a quarter turn (0 for a
+    holonomic one), so a robot that must turn to steer away starts that much earlier. A
+    holonomic Sphero's parameters are unchanged."""
 
     def __post_init__(self) -> None:
         if self.obstacle_avoidance is not None:
@@ -862,6 +871,7 @@ class ReynoldsParams:
         _set(self, "personal_space", _number("personal_space", self.personal_space, 0.0, 5.0,
                                              unit="m"))
         _set(self, "follow_route", _flag("follow_route", self.follow_route))
+        _set(self, "scale_to_robot", _flag("scale_to_robot", self.scale_to_robot))
         _set(self, "robot_avoidance", _number("robot_avoidance", self.robot_avoidance, 0.0, 5.0,
                                               unit="m"))
         for name in ("separation_weight", "cohesion_weight", "alignment_weight",
@@ -889,6 +899,11 @@ PRESETS: dict[str, ReynoldsParams] = {
     "proxemic": ReynoldsParams(personal_space=1.2),
     # Beyond the study: the leader sought along its route through doors (route sensing).
     "route": ReynoldsParams(follow_route=True, robot_avoidance=0.15),
+    # Beyond the study: route following sized for the robot (issue 38), and a clear path
+    # ahead of the leader (the proxemic leader term along the route), so that robots larger
+    # than a Sphero never pack into contact nor meet a leader backing out of a dead end.
+    "scaled": ReynoldsParams(follow_route=True, robot_avoidance=0.15, personal_space=0.56,
+                             scale_to_robot=True),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
 

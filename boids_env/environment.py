@@ -670,7 +670,8 @@ def _build_world(cfg: EnvConfig, initial: npt.NDArray[np.float64],
     return World(cfg.world, initial, cfg.scene, headings,
                  leader_radius=None if sc.leader == "robot" else sc.person_radius,
                  pedestrians=None if people is None else people.start_pedestrians,
-                 pedestrian_radius=sc.person_radius)
+                 pedestrian_radius=sc.person_radius,
+                 leader_kinematic=sc.leader == "trajectory" and sc.crowd > 0)
 
 
 def parallel_env(render_mode: str | None = None, **kwargs: Any) -> BoidsEnv:

@@ -375,8 +375,9 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                    "deployment, validation (trained cases on seeds 100-104, what boids select "
                    "ranks on), "
                    "person (a person leading: speed, group size, crowd), "
-                   "robot_types (the study's experiment for every robot preset), or a TOML "
-                   "file")
+                   "robot_types (the study's experiment for every robot preset), "
+                   "robots_buildings and crowd_buildings (larger robots and crowds on the "
+                   "square and held-out floor plans), or a TOML file")
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=None, help="seeds 0..N-1 (suite's: 5)")
     seeds.add_argument("--blocks", type=int, default=None, metavar="K",

@@ -379,11 +379,46 @@ realism; 13 robots at 0.55 m/s, ending 10 s after the leader's arrival. ``lost_f
 (farther than 3 m from the leader at the end) is in its safety table. Run it for
 ``reynolds`` and ``reynolds@route``."""
 
+ROBOTS_BUILDINGS_PLANS = (1004, 1011, 1016)
+"""Held-out floor plans (of :data:`BUILDING_SEEDS`) of the ``robots_buildings`` suite, picked
+before the ``scaled`` Reynolds preset was tuned (it was tuned on plans 3, 5 and 8 and the
+study's square on seeds 10-11)."""
+ROBOTS_BUILDINGS_ROBOTS = ("turtlebot3_burger", "gritsbot")
+"""The robots of the ``robots_buildings`` suite: those larger than the study's Sphero."""
+
+
+def _robot_building_cases(robot: str) -> list[Case]:
+    square = Case(f"{robot}: square", robot, "scene", "square", {"robot": robot, "robots": 13})
+    plans = [Case(f"{robot}: floorplan {s}", robot, "scene", f"floorplan {s}",
+                  {"robot": robot, "robots": 13, "tail_time": 10.0, "scene": f"floorplan:{s}"})
+             for s in ROBOTS_BUILDINGS_PLANS]
+    return [square, *plans]
+
+
+ROBOTS_BUILDINGS = Suite("robots_buildings", tuple(
+    c for robot in ROBOTS_BUILDINGS_ROBOTS for c in _robot_building_cases(robot)))
+"""Issue 38's bar for robots larger than a Sphero (picked before tuning): TurtleBot3 Burger and
+GRITSbot flocks of 13 on the study's square and on held-out floor plans
+(:data:`ROBOTS_BUILDINGS_PLANS`), the leader at 1.1 × the robot's top speed, episodes in a
+building ending 10 s after the leader's arrival (as ``buildings``); 5 seeds. Bar: touching
+≤ 1 %, walls ≤ 1 %, no follower lost. Run it for ``reynolds``, ``reynolds@route`` and
+``reynolds@scaled``."""
+
+CROWD_BUILDINGS = Suite("crowd_buildings", (
+    Case("square, crowd 8", "crowd", "scene", "square", {"robots": 13, "crowd": 8}),
+    *(Case(f"floorplan {s}, crowd 8", "crowd", "scene", f"floorplan {s}",
+           {"robots": 13, "crowd": 8, "tail_time": 10.0, "scene": f"floorplan:{s}"})
+      for s in ROBOTS_BUILDINGS_PLANS[:2])))
+"""The ``scaled`` Reynolds preset's crowd cases (picked before it was run on any crowd): 13
+Spheros (crowds walk among holonomic robots only) and 8 pedestrians on the study's square and
+two held-out floor plans (as ``robots_buildings``); 5 seeds."""
+
 SUITES = {"paper": PAPER, "robustness": ROBUSTNESS, "generalisation": GENERALISATION,
           "scenes": SCENES, "buildings": BUILDINGS, "deployment": DEPLOYMENT,
           "validation": VALIDATION, "person": PERSON,
           "person_learned": PERSON_LEARNED, "robot_types": ROBOT_TYPES,
-          "turtlebot_generalisation": TURTLEBOT_GENERALISATION}
+          "turtlebot_generalisation": TURTLEBOT_GENERALISATION,
+          "robots_buildings": ROBOTS_BUILDINGS, "crowd_buildings": CROWD_BUILDINGS}
 
 
 def load_suite(spec: str | Path) -> Suite:

@@ -17,6 +17,12 @@ through free space (the observation's ``route`` block, :mod:`boids_env.world.rou
 F_lead = d·L with d the route's unit direction and L its length, so a follower behind a wall
 seeks the door rather than the wall (the straight line where no free route exists).
 
+Beyond the study, preset ``scaled`` (issue 38) sizes the controller for the robot
+(``scale_to_robot``, :func:`sized_params`: the study's distances kept as free gaps between
+bodies) and follows the route with the proxemic leader term along it: F_lead = r − s·r/|r|
+with r the route term above, plus the push out of the leader's path ahead (below), so a
+follower steps aside for a leader backing out of a dead end instead of fleeing before it.
+
 Beyond the study (on in any scene but the study's empty arena, see ``obstacle_avoidance``):
 - obstacle   F_obs = −max_force · Σ_m s_m · n_m over the static slots m (n_m the unit vector
   towards the surface point at distance d_m, u_m = max(0, v·n_m) the approach speed),
@@ -42,6 +48,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from typing import Any
 
 import numpy as np
@@ -127,10 +134,23 @@ def proxemic_leader_force(leader_offset: FloatArray, leader_velocity: FloatArray
         leader_velocity: (F, 2) the person's velocity as each follower observes it (m/s).
         space: the personal space's radius s (m).
     """
-    rx, ry = leader_offset[:, 0], leader_offset[:, 1]
+    return ring_force(leader_offset, space) + path_push(leader_offset, leader_velocity, space)
+
+
+def ring_force(offset: FloatArray, space: float) -> FloatArray:
+    """``offset`` (F, 2) shortened by ``space`` along itself: towards the circle of radius
+    ``space`` around its end (from inside: away from it)."""
+    rx, ry = offset[:, 0], offset[:, 1]
     dist = np.sqrt(rx * rx + ry * ry)
     scale = np.where(dist > 0, 1.0 - space / np.where(dist > 0, dist, 1.0), 0.0)
-    ring = leader_offset * scale[:, None]
+    return offset * scale[:, None]
+
+
+def path_push(leader_offset: FloatArray, leader_velocity: FloatArray, space: float
+              ) -> FloatArray:
+    """The sideways push (F, 2) out of the strip of half-width ``space`` ahead of a walking
+    leader (the proxemics-aware leader term's second part, module docstring)."""
+    rx, ry = leader_offset[:, 0], leader_offset[:, 1]
     vx, vy = leader_velocity[:, 0], leader_velocity[:, 1]
     speed = np.sqrt(vx * vx + vy * vy)
     walking = speed >= WALKING_SPEED
@@ -142,7 +162,7 @@ def proxemic_leader_force(leader_offset: FloatArray, leader_velocity: FloatArray
         np.abs(across) < space)
     side = np.where(across >= 0, 1.0, -1.0)
     push = np.where(ahead, (space - np.abs(across)) * side, 0.0)
-    return ring + np.stack([-ey * push, ex * push], axis=1)
+    return np.stack([-ey * push, ex * push], axis=1)
 
 
 def pedestrian_points(slots: FloatArray, radius: float) -> tuple[FloatArray,
@@ -270,6 +290,42 @@ def bound_params(params: ReynoldsParams, own: frozenset[str] | set[str], config:
     return dataclasses.replace(params, **changes) if changes else params
 
 
+STUDY_RADIUS = 0.036
+"""The study's Sphero's radius (m): the size the distances of a preset are given for."""
+
+
+def turn_time(world: Any) -> float:
+    """Seconds a robot of config section ``world`` needs to turn a quarter turn from rest:
+    π/2 at its top turn rate plus the ramp to it at its turn acceleration; 0 for a holonomic
+    robot (it needs no turn to change its direction of motion)."""
+    if world.drive == "holonomic" or world.max_turn_rate is None:
+        return 0.0
+    rate = float(world.max_turn_rate)
+    ramp = rate / float(world.max_turn_acceleration) if world.max_turn_acceleration else 0.0
+    return (math.pi / 2) / rate + ramp
+
+
+def sized_params(params: ReynoldsParams, radius: float, turn: float = 0.0,
+                 sized_for: tuple[float, float] = (STUDY_RADIUS, 0.0)) -> ReynoldsParams:
+    """``params``, whose distances are for robots of radius ``sized_for[0]`` and look-ahead
+    for robots turning a quarter turn in ``sized_for[1]`` s (the study's holonomic Sphero
+    unless given), sized for robots of ``radius`` (m) that turn in ``turn`` s
+    (``scale_to_robot``, :func:`turn_time`): centre-to-centre distances
+    (``desired_separation``, ``personal_space`` when on) 2·Δradius longer, the
+    centre-to-surface ``obstacle_distance`` Δradius longer, so the free gaps stay the same,
+    and the ``obstacle_lookahead`` Δturn longer, so a robot that must turn before it can steer
+    away starts that much earlier. ``params`` itself for the same robot."""
+    grow = radius - sized_for[0]
+    slower = turn - sized_for[1]
+    if grow == 0.0 and slower == 0.0:
+        return params
+    return dataclasses.replace(
+        params, desired_separation=max(params.desired_separation + 2 * grow, 0.0),
+        personal_space=max(params.personal_space + 2 * grow, 0.0) if params.personal_space
+        else 0.0, obstacle_distance=max(params.obstacle_distance + grow, 1e-3),
+        obstacle_lookahead=max(params.obstacle_lookahead + slower, 0.0))
+
+
 class ReynoldsPolicy(BatchPolicy):
     """Reynolds + leader controller of the study, reading observations only.
 
@@ -289,6 +345,8 @@ class ReynoldsPolicy(BatchPolicy):
     def __init__(self, preset: str = "paper", *, layout: ObservationLayout | None = None,
                  **overrides: Any) -> None:
         self.params = reynolds_params(preset, **overrides)
+        # the robot radius and quarter-turn time self.params' distances are for
+        self._sized_for = (STUDY_RADIUS, 0.0)
         defaults = ReynoldsParams()
         # the values the controller itself sets (given, or its preset's own): kept when bound
         # where the env allows them, the rest taken from the env
@@ -321,6 +379,10 @@ class ReynoldsPolicy(BatchPolicy):
         self.pedestrian_radius = config.scenario.person_radius
         self.robot_radius = config.world.robot_radius
         self.params = bound_params(self.params, self._own, config)
+        if self.params.scale_to_robot:
+            turn = turn_time(config.world)
+            self.params = sized_params(self.params, self.robot_radius, turn, self._sized_for)
+            self._sized_for = (self.robot_radius, turn)
 
     def reset(self, seed: int | None = None) -> None:
         self._steps = 0
@@ -353,6 +415,10 @@ class ReynoldsPolicy(BatchPolicy):
                                                      p.personal_space)
         if p.follow_route:
             forces["leader"] = route_leader_force(obs, layout)
+            if p.personal_space > 0:  # the ring and the clear path ahead, along the route
+                forces["leader"] = ring_force(forces["leader"], p.personal_space) + path_push(
+                    obs[:, layout.leader_position], obs[:, layout.leader_velocity],
+                    p.personal_space)
         if self.avoid or people:
             static = layout.static_slots(obs) if self.avoid else np.zeros((len(obs), 0, 3))
             points, valid, moving = static[..., :2], static[..., 2] > 0.5, own

@@ -8,7 +8,9 @@ The person walks to its path's corners in turn at a preferred speed that varies 
 (a seeded Ornstein–Uhlenbeck factor around 1) and stops for a seeded while at each corner;
 pedestrians walk to random goals in the walkable area, a new one on arrival. Nobody here sees
 the robots (0.18 kg robots do not steer people): the world moves the people as kinematic
-bodies, and robots collide with them rigidly.
+bodies, and robots collide with them rigidly. A replayed walk (``leader="trajectory"``) among
+a crowd is a standing agent of the simulation on the disc the person sweeps in each period,
+put in anew every period, so the pedestrians walk around it.
 
 Deterministic: JuPedSim's model is seeded from the episode's stream and every draw here
 comes from one ``np.random.Generator``; the same seed gives the same walk bit for bit (JuPedSim
@@ -57,6 +59,12 @@ STUCK_DISTANCE = 0.2
 """See :data:`STUCK_TIME` (m)."""
 GIVE_WAY_RADIUS = 3.0
 """A pedestrian giving way picks its new goal within this distance (m)."""
+WALKER_ROOM = 1e-3
+"""Gap (m) a replayed person's disc in JuPedSim leaves to the nearest pedestrian's (JuPedSim
+refuses an agent overlapping another)."""
+MIN_WALKER_RADIUS = 0.05
+"""Smallest disc (m) of a replayed person put into JuPedSim; a pedestrian nearer than this
+leaves none that period."""
 PLACEMENT_TRIES = 2_000
 """Random start or goal draws tried before giving up."""
 
@@ -137,16 +145,19 @@ class People:
         crowd_speed: the pedestrians' preferred speed (m/s), each drawn within ±20 %.
         radius: body radius (m) of the person and the pedestrians.
         keep_clear: (M, 2) points pedestrians do not start near (the robots' start).
+        walk: a replayed person's walk (times (M,) s, points (M, 2) m), or None: the crowd
+            gives way to it (see :meth:`_place_walker`).
     """
 
     def __init__(self, scene: Scene, dt: float, rng: np.random.Generator, *,
                  person: tuple[float, float] | None, goals: FloatArray, speed: float,
                  gait_variation: float, goal_pause: float, startup_time: float, crowd: int,
-                 crowd_speed: float, radius: float, keep_clear: FloatArray) -> None:
+                 crowd_speed: float, radius: float, keep_clear: FloatArray,
+                 walk: tuple[FloatArray, FloatArray] | None = None) -> None:
         self._args = dict(scene=scene, dt=dt, person=person, goals=np.asarray(goals, float),
                           speed=speed, gait_variation=gait_variation, goal_pause=goal_pause,
                           startup_time=startup_time, crowd=crowd, crowd_speed=crowd_speed,
-                          radius=radius, keep_clear=np.asarray(keep_clear, float))
+                          radius=radius, keep_clear=np.asarray(keep_clear, float), walk=walk)
         self._rng_state = rng.bit_generator.state
         self._build(rng)
 
@@ -164,10 +175,11 @@ class People:
         stage = self._sim.add_direct_steering_stage()
         journey = self._sim.add_journey(jps.JourneyDescription([stage]))
 
-        def add(position: FloatArray, desired: float) -> int:
+        def add(position: FloatArray, desired: float, radius: float | None = None) -> int:
             params = jps.AnticipationVelocityModelAgentParameters(
                 position=(float(position[0]), float(position[1])), journey_id=journey,
-                stage_id=stage, desired_speed=desired, radius=self.radius + ROBOT_ROOM,
+                stage_id=stage, desired_speed=desired,
+                radius=self.radius + ROBOT_ROOM if radius is None else radius,
                 wall_buffer_distance=WALL_BUFFER)
             return int(self._sim.add_agent(params))
 
@@ -189,6 +201,8 @@ class People:
             for p, v in zip(starts, self.speeds.tolist(), strict=True):
                 self._ids.append(add(p, v))
                 self._agent(len(self._ids) - 1).target = tuple(self._free_point().tolist())
+        self._walker: int | None = None  # JuPedSim's id of the replayed person's disc
+        self._add = add
         self.steps = 0
         self.positions = self._read()
         self.start_pedestrians = self.pedestrians.copy()
@@ -246,10 +260,14 @@ class People:
         """Moves everyone by one control period starting at time ``t`` (s); returns the new
         positions (K, 2), the person first when there is one."""
         a = self._args
+        if self._walker is not None:
+            self._sim.mark_agent_for_removal(self._walker)
         if self.has_person:
             self._steer_person(t, a)
-        for _ in range(self._iterations):
+        for k in range(self._iterations):
             self._sim.iterate()
+            if k == 0 and a["walk"] is not None:  # the last period's disc is gone now
+                self._place_walker(t)
         self.steps += 1
         agents = [self._sim.agent(i) for i in self._ids]  # looked up once for both uses
         self.positions = np.array([agent.position for agent in agents],
@@ -280,6 +298,34 @@ class People:
         walking = (t >= a["startup_time"] - 1e-9 and t >= self._pause_until - 1e-9
                    and not self.finished)
         person.model.desired_speed = a["speed"] * self._gait if walking else 0.0
+
+    def _place_walker(self, t: float) -> None:
+        """Puts the replayed person into JuPedSim for the period from ``t`` (s): a standing
+        agent on the disc the person's body sweeps in it (centred between its positions at
+        ``t`` and ``t + dt``, the person's radius + :data:`ROBOT_ROOM` + half the step), so
+        the pedestrians steer around it as around anyone; its disc of the last period is
+        marked for removal (JuPedSim removes it in its next iteration). JuPedSim refuses an
+        agent overlapping another: the disc shrinks to the room the pedestrians leave (none, or
+        a refusal: no disc this period; the person's kinematic body still pushes them
+        aside)."""
+        times, points = self._args["walk"]
+        here = np.array([np.interp(t, times, points[:, 0]), np.interp(t, times, points[:, 1])])
+        t1 = t + self.dt
+        there = np.array([np.interp(t1, times, points[:, 0]),
+                          np.interp(t1, times, points[:, 1])])
+        centre = (here + there) / 2
+        body = self.radius + ROBOT_ROOM
+        radius = body + math.hypot(*(there - here)) / 2
+        if self._ids:
+            now = self._read()  # where JuPedSim has them now
+            gaps = np.hypot(now[:, 0] - centre[0], now[:, 1] - centre[1])
+            radius = min(radius, float(gaps.min()) - body - WALKER_ROOM)
+        self._walker = None
+        if radius >= MIN_WALKER_RADIUS:
+            try:
+                self._walker = self._add(centre, 0.0, radius)
+            except RuntimeError:  # JuPedSim found two of its agents too close: none now
+                self._walker = None
 
     def _retarget_crowd(self, agents: list[Any]) -> None:
         """Pedestrians that reached their goal get a new random one; those stuck for

@@ -1,9 +1,13 @@
 """A person as the leader: walked by the pedestrian model (``leader="person"``) or replayed
 from a recorded walk (``leader="trajectory"``, a CSV of ``t, x, y``).
 
-Both are kinematic: the world moves robot 0 exactly by the command these leaders return, the
-displacement to the person's next position over one control period, so the leader's position
-after each step is the walk's own (to rounding).
+Both are commanded kinematically: the world moves robot 0 by the command these leaders return,
+the displacement to the person's next position over one control period, so the leader's
+position after each step is the walk's own, but for what robots pushing the person's 20 kN
+driven body move it (micrometres, corrected the next period). A replayed walk among a crowd
+(whose pedestrians are as heavy and as strongly driven) is a kinematic body that nothing
+pushes, on its walk to rounding, and the pedestrian model walks around it
+(:meth:`~boids_env.world.people.People._place_walker`).
 """
 
 from __future__ import annotations
@@ -122,10 +126,11 @@ def make_person(scenario: ScenarioConfig, scene: Scene, leader: Leader,
     from boids_env.world.people import People
 
     sc = scenario
+    walk = None
     if sc.leader == "trajectory":
         assert sc.leader_trajectory is not None
-        times, points = read_walk(sc.leader_trajectory)
-        leader = TrajectoryLeader(times, points, dt)
+        walk = read_walk(sc.leader_trajectory)
+        leader = TrajectoryLeader(*walk, dt)
     walking = sc.leader == "person" and sc.path != "external"
     if not walking and not sc.crowd:
         return leader, None
@@ -137,7 +142,7 @@ def make_person(scenario: ScenarioConfig, scene: Scene, leader: Leader,
                     goals=goals, speed=sc.leader_speed, gait_variation=sc.gait_variation,
                     goal_pause=0.0 if curve else sc.goal_pause, startup_time=sc.startup_time,
                     crowd=sc.crowd, crowd_speed=sc.crowd_speed, radius=sc.person_radius,
-                    keep_clear=initial)
+                    keep_clear=initial, walk=walk)
     if walking:
         assert path is not None
         leader = PersonLeader(people, np.vstack([initial[:1], goals]), sc.leader_speed,

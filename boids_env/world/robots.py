@@ -267,13 +267,16 @@ class RobotModel:
                    ) -> tuple[list[pymunk.Body], list[pymunk.Body]]:
         """Adds every robot (a disc) and its kinematic control body; returns both lists.
         ``leader``: (mass, radius, drive force) of robot 0 when it is not a robot (a
-        person)."""
+        person); an infinite drive force makes it a kinematic body that nothing pushes (a
+        replayed walk)."""
         cfg = self.config
         robots: list[pymunk.Body] = []
+        kinematic = leader is not None and math.isinf(leader[2])
         for k, p in enumerate(positions):
             mass, radius = (leader[0], leader[1]) if k == 0 and leader else (
                 cfg.robot_mass, cfg.robot_radius)
-            body = pymunk.Body(mass, float("inf"))
+            body = (pymunk.Body(body_type=pymunk.Body.KINEMATIC) if k == 0 and kinematic
+                    else pymunk.Body(mass, float("inf")))
             body.position = (float(p[0]), float(p[1]))
             shape = pymunk.Circle(body, radius)
             shape.elasticity = 0.0
@@ -284,6 +287,10 @@ class RobotModel:
         for k, robot in enumerate(robots):
             control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
             control.position = robot.position
+            if k == 0 and kinematic:  # moved by its velocity alone: no joint
+                space.add(control)
+                controls.append(control)
+                continue
             joint = pymunk.PivotJoint(control, robot, (0, 0), (0, 0))
             joint.max_bias = 0.0  # velocity tracking only: no pull towards the control body
             joint.max_force = leader[2] if k == 0 and leader else cfg.drive_force

@@ -16,6 +16,7 @@ static body; :class:`World` checks that order once when it is built.
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -102,6 +103,9 @@ class World:
         leader_radius: a person leads (None: a robot): robot 0 is then a disc of this
             radius (m) and :data:`PERSON_MASS` tracking its commanded velocity with up to
             :data:`PERSON_DRIVE`; robots collide with it rigidly and cannot push it.
+        leader_kinematic: the person's body is kinematic (a replayed walk among a crowd): it
+            moves by its commanded velocity exactly, and pedestrians and robots it meets are
+            pushed, never it.
         pedestrians: (P, 2) initial positions of the crowd (m): discs like the person's, of
             ``pedestrian_radius``, tracking :meth:`step`'s ``pedestrian_velocities``.
         pedestrian_radius: the pedestrians' radius (m).
@@ -113,7 +117,7 @@ class World:
     def __init__(self, config: WorldConfig, positions: npt.ArrayLike,
                  scene: Scene | None = None, headings: npt.ArrayLike | None = None, *,
                  leader_radius: float | None = None, pedestrians: npt.ArrayLike | None = None,
-                 pedestrian_radius: float = 0.22) -> None:
+                 pedestrian_radius: float = 0.22, leader_kinematic: bool = False) -> None:
         self.config = config
         if scene is None:
             from boids_env.world.scenes import load_scene
@@ -143,7 +147,8 @@ class World:
         if (person or self.p) and self.model.has_heading:
             raise ValueError("a person leader and crowds walk among holonomic robots only; "
                              "use robot='sphero' (or another holonomic robot) with people")
-        leader = (PERSON_MASS, leader_radius, PERSON_DRIVE) if person else None
+        drive = math.inf if leader_kinematic else PERSON_DRIVE
+        leader = (PERSON_MASS, leader_radius, drive) if person else None
         self._robots, self._controls = self.model.add_bodies(self.space, start, leader)
         self.pedestrian_radius = pedestrian_radius
         walkers = [self._add_disc(q, PERSON_MASS, pedestrian_radius) for q in crowd]

@@ -119,3 +119,62 @@ def test_a_fifo_walk_is_refused_without_blocking(tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(ValueError, match="not a regular file"):
         read_walk(fifo)
+
+
+def _replay(seeds, **fields):
+    """The replayed person's deviation from the walk (m) at every sample, and the samples."""
+    times, points = read_walk("doorway_walk")
+    worst, steps = 0.0, 0
+    for seed in seeds:
+        env = parallel_env(scene="doorway", leader="trajectory",
+                           leader_trajectory="doorway_walk", **fields)
+        env.reset(seed=seed)
+        while env.agents:
+            env.step({a: np.zeros(2) for a in env.agents})
+            snap = env.snapshot()
+            want = (np.interp(snap.time, times, points[:, 0]),
+                    np.interp(snap.time, times, points[:, 1]))
+            worst = max(worst, float(np.hypot(*(snap.positions[0] - want))))
+            steps += 1
+    return worst, steps
+
+
+@pytest.mark.slow
+def test_a_crowd_yields_to_a_replayed_person():
+    # issue 38: 8 pedestrians pushed the replayed person up to 0.25 m off its recording
+    worst, steps = _replay((0, 1, 2), crowd=8, robots=5)
+    assert steps > 800
+    assert worst < 1e-9, f"the replayed person left its walk by {worst:.3g} m"
+
+
+def test_a_replay_without_a_crowd_is_what_it_was_before_the_crowd_yielded():
+    # the digest of 300 steps' positions (to 1 nm) written by the code before issue 38's
+    # kinematic replay: without a crowd the replayed person stays a driven body, as before
+    import hashlib
+
+    env = parallel_env(scene="doorway", leader="trajectory", leader_trajectory="doorway_walk",
+                       robots=5)
+    env.reset(seed=3)
+    digest = hashlib.sha256()
+    for _ in range(300):
+        env.step({a: np.full(2, 0.1) for a in env.agents})
+        digest.update(np.round(env.snapshot().positions, 9).tobytes())
+    assert digest.hexdigest() == (
+        "9cd05146e1fd9167a5842d6440f5023f6164d271068588cb7aa05475ab3b91e9")
+
+
+def test_a_replay_among_a_crowd_pickles_mid_episode():
+    import pickle
+
+    env = parallel_env(scene="doorway", leader="trajectory", leader_trajectory="doorway_walk",
+                       crowd=8, robots=5)
+    env.reset(seed=1)
+    for _ in range(60):
+        env.step({a: np.full(2, 0.05) for a in env.agents})
+    clone = pickle.loads(pickle.dumps(env))
+    for step in range(40):
+        env.step({a: np.full(2, 0.05) for a in env.agents})
+        clone.step({a: np.full(2, 0.05) for a in clone.agents})
+        assert np.array_equal(env.snapshot().positions, clone.snapshot().positions), step
+        assert np.array_equal(env._world.pedestrian_positions,
+                              clone._world.pedestrian_positions), step

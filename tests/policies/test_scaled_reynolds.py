@@ -1,0 +1,98 @@
+"""Reynolds sized for the robot (preset ``scaled``, issue 38): the study's distances are free
+gaps between Spheros; bound to a larger robot they keep those gaps, and the flock follows the
+route and clears the leader's path."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from boids_env.config import PRESETS, ReynoldsParams, reynolds_params
+from boids_env.environment import BoidsEnv
+from boids_env.eval.episode import env_fields_for, run_episode
+from boids_env.policies.reynolds import ReynoldsPolicy, sized_params
+
+
+def _bound(preset, robot):
+    policy = ReynoldsPolicy(preset)
+    env = BoidsEnv(**env_fields_for(policy, {"robot": robot}))
+    env.reset(seed=0)
+    policy.bind(env)
+    return policy, env
+
+
+def test_the_scaled_preset_follows_the_route_and_clears_the_leaders_path():
+    p = reynolds_params("scaled")
+    assert p.scale_to_robot and p.follow_route
+    assert p.robot_avoidance == 0.15 and p.personal_space == 0.56
+    assert p.obstacle_lookahead == 1.0  # a holonomic Sphero's; sized for a turning robot
+    assert PRESETS["paper"] == ReynoldsParams()  # the study's preset is untouched
+    assert not reynolds_params("route").scale_to_robot
+
+
+def test_distances_keep_the_spheros_free_gaps_on_a_turtlebot():
+    # TurtleBot3 Burger: r = 0.105 m, 0.069 m more than the Sphero's 0.036 m
+    p = sized_params(reynolds_params("scaled"), 0.105, 1.5)
+    assert p.desired_separation == pytest.approx(0.7 + 2 * 0.069, abs=1e-12)  # 0.838
+    assert p.personal_space == pytest.approx(0.56 + 2 * 0.069, abs=1e-12)  # 0.698
+    assert p.obstacle_distance == pytest.approx(0.4 + 0.069, abs=1e-12)  # 0.469
+    assert p.obstacle_lookahead == pytest.approx(2.5, abs=1e-12)  # 1 s + 1.5 s to turn
+    assert p.robot_avoidance == 0.15  # a surface gap already
+    # a Sphero's are the preset's own; a preset without a personal space keeps none
+    sphero = reynolds_params("scaled")
+    assert sized_params(sphero, 0.036) is sphero
+    assert sized_params(reynolds_params("route"), 0.105).personal_space == 0.0
+
+
+def test_binding_sizes_once_for_the_env_robot():
+    policy, env = _bound("scaled", "turtlebot3_burger")
+    first = policy.params
+    assert first.desired_separation == pytest.approx(0.838, abs=1e-12)
+    # a quarter turn at 2.84 rad/s after the ramp to it at 3.2 rad/s²
+    assert first.obstacle_lookahead == pytest.approx(1.0 + math.pi / 2 / 2.84 + 2.84 / 3.2,
+                                                     abs=1e-12)
+    policy.bind(env)  # every episode binds again: the distances do not grow
+    assert policy.params == first
+    other = BoidsEnv(**env_fields_for(policy, {"robot": "gritsbot"}))
+    other.reset(seed=0)
+    policy.bind(other)  # GRITSbot: r = 0.055 m, 3.64 rad/s at once
+    assert policy.params.desired_separation == pytest.approx(0.7 + 2 * 0.019, abs=1e-12)
+    assert policy.params.obstacle_lookahead == pytest.approx(1.0 + math.pi / 2 / (0.4 / 0.11),
+                                                             abs=1e-12)
+    sphero, _ = _bound("scaled", "sphero")
+    assert sphero.params == dataclasses.replace(reynolds_params("scaled"), max_speed=0.5)
+    paper, _ = _bound("paper", "turtlebot3_burger")
+    assert paper.params.desired_separation == 0.7  # only scale_to_robot sizes
+
+
+def test_along_the_route_the_leader_term_seeks_the_ring_and_pushes_out_of_the_path():
+    from boids_env.policies.reynolds import path_push, ring_force
+
+    # route 2 m east; the personal space 0.5 m: seek the point 1.5 m east
+    assert np.allclose(ring_force(np.array([[2.0, 0.0]]), 0.5), [[1.5, 0.0]])
+    # the leader 1 m east walking west at 0.5 m/s; the follower 0.1 m south of its line:
+    # in the strip ahead (1 m <= 2 s x 0.5 + 0.5), pushed 0.5 - 0.1 = 0.4 m further south
+    push = path_push(np.array([[1.0, 0.1]]), np.array([[-0.5, 0.0]]), 0.5)
+    assert np.allclose(push, [[0.0, -0.4]])
+    # behind the walking leader: no push
+    assert np.allclose(path_push(np.array([[-1.0, 0.1]]), np.array([[-0.5, 0.0]]), 0.5), 0)
+
+
+@pytest.mark.slow
+def test_a_scaled_turtlebot_flock_never_touches_where_the_studys_packs():
+    def run(preset):
+        policy = ReynoldsPolicy(preset)
+        env = BoidsEnv(**env_fields_for(policy, {"robot": "turtlebot3_burger",
+                                                 "max_cycles": 600}))
+        return run_episode(env, policy, seed=0).metrics
+
+    paper, scaled = run("paper"), run("scaled")
+    assert paper["touching_fraction"] > 0.3, paper["touching_fraction"]
+    assert scaled["touching_fraction"] == 0.0, scaled["touching_fraction"]
+    assert scaled["lost_followers"] == 0
+
+
+def test_scale_to_robot_is_validated():
+    with pytest.raises((TypeError, ValueError), match="scale_to_robot"):
+        dataclasses.replace(ReynoldsParams(), scale_to_robot="yes")
