@@ -718,6 +718,11 @@ class Observer:
                 rows = np.flatnonzero(hidden)
                 obs[rows, self.layout.leader_position.start] = along[:, 0]
                 obs[rows, self.layout.leader_position.start + 1] = along[:, 1]
+                # its motion as seen along that way: the leader's speed along the route
+                seen = obs[rows][:, self.layout.leader_velocity].astype(np.float64)
+                speed = np.sqrt(seen[:, 0] * seen[:, 0] + seen[:, 1] * seen[:, 1])
+                obs[rows, self.layout.leader_velocity.start] = speed * route[:, 0]
+                obs[rows, self.layout.leader_velocity.start + 1] = speed * route[:, 1]
         if cfg.obs_noise > 0:
             if self._rng is None:
                 raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")
