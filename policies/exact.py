@@ -100,9 +100,9 @@ class ExactLinear:
         return np.add(total, self.bias, out=total)
 
 
-_INV_LN2 = 1.0 / math.log(2.0)
-_LN2 = math.log(2.0)
-_TANH_ONE = 20.0
+INV_LN2 = 1.0 / math.log(2.0)
+LN2 = math.log(2.0)
+TANH_ONE = 20.0
 """|y| from which tanh(y) rounds to ±1 in float64 (1 - tanh(20) = 8e-18 < 2^-53)."""
 
 
@@ -115,12 +115,12 @@ def tanh(y: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     approximant ``N / D`` (relative error below 3e-12); then ``tanh|y| = (1 - e) / (1 + e)
     = (D - 2^k N) / (D + 2^k N)``, given the sign of ``y``.
     """
-    t = np.minimum(np.abs(y), _TANH_ONE)
+    t = np.minimum(np.abs(y), TANH_ONE)
     z = t * -2.0  # z in [-40, 0]
     # z = k ln2 + r; fmax turns a NaN's k into a number (a NaN y still gives NaN, through r)
     # so the cast to int below never sees one
-    k = np.rint(np.fmax(z * _INV_LN2, -64.0))
-    r = z - k * _LN2
+    k = np.rint(np.fmax(z * INV_LN2, -64.0))
+    r = z - k * LN2
     r2 = r * r
     even = (r2 * (1.0 / 1680.0) + 3.0 / 28.0) * r2 + 1.0  # the Padé polynomials' even part
     odd = (r2 * (1.0 / 84.0) + 0.5) * r  # and odd part: N = even + odd, D = even - odd

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env import kernels
 from boids_env.untrusted import excerpt
 from boids_env.world import geometry as geo
 
@@ -73,8 +74,13 @@ class OccupancyGrid:
     def occupied(self, points: FloatArray) -> BoolArray:
         """Whether each point (P, 2) lies in an occupied or unknown cell, or off the map."""
         x0, y0, yaw = self.origin
-        rel = points - np.array([x0, y0])
         c, s = math.cos(yaw), math.sin(yaw)
+        compiled = kernels.compiled()
+        if compiled is not None and points.ndim == 2 and np.isfinite(points).all():
+            return compiled.occupied(np.ascontiguousarray(points, dtype=np.float64),
+                                     self.cells, float(self.resolution), float(x0), float(y0),
+                                     c, s)  # the same cells in one loop (boids_env.kernels)
+        rel = points - np.array([x0, y0])
         local = np.stack([rel[:, 0] * c + rel[:, 1] * s, -rel[:, 0] * s + rel[:, 1] * c], 1)
         col = np.floor(local[:, 0] / self.resolution).astype(np.int64)
         row = np.floor(local[:, 1] / self.resolution).astype(np.int64)
@@ -210,6 +216,18 @@ class Scene:
         cy = np.clip(cell[:, 1], 0, shape[1] - 1)
         return table[cx * shape[1] + cy]
 
+    def _kernel_index(self, reach: float) -> tuple[FloatArray, npt.NDArray[np.intp],
+                                                   npt.NDArray[np.intp]]:
+        """The index for ``reach`` as the compiled queries take it: ``(origin (x, y, cell),
+        shape (2,), table)``."""
+        key = ("kernel index", float(reach))
+        if key not in self._cache:
+            self._candidates(np.zeros((0, 2)), reach)  # builds the index
+            origin, shape, table = self._cache[("index", float(reach))]
+            self._cache[key] = (np.array([origin[0], origin[1], INDEX_CELL]),
+                                np.array(shape, dtype=np.intp), np.ascontiguousarray(table))
+        return self._cache[key]
+
     def _query_arrays(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The query capsules plus the dummy one at the end."""
         if "padded" not in self._cache:
@@ -256,6 +274,11 @@ class Scene:
         """Distance (P,) from each point to the nearest capsule or polygon edge surface
         (values beyond ``reach`` may be any number above it)."""
         qa, qb, qr = self._query_arrays()
+        compiled = kernels.compiled()
+        if compiled is not None and np.isfinite(points).all():  # the same bits in one loop
+            origin, shape, table = self._kernel_index(reach)
+            return compiled.shape_clearance(np.ascontiguousarray(points), qa, qb, qr, table,
+                                            origin, shape)
         idx = self._candidates(points, reach)
         _, d = geo.closest_on_segments(points[:, None, :], qa[idx], qb[idx])
         return np.min(d - qr[idx], axis=1, initial=np.inf)
@@ -306,6 +329,18 @@ class Scene:
             point (m, world frame), zeros in empty slots.
         """
         pts = np.asarray(points, dtype=float)
+        compiled = kernels.compiled()
+        shapes = len(self._qr) > 0
+        if (compiled is not None and (shapes or self.box is not None) and pts.ndim == 2
+                and np.isfinite(pts).all()):  # the same bits in one loop (boids_env.kernels)
+            qa, qb, qr = self._query_arrays()
+            origin, shape, table = (self._kernel_index(reach) if shapes
+                                    else (np.zeros(3), np.ones(2, dtype=np.intp),
+                                          np.zeros((1, 1), dtype=np.intp)))
+            box = np.array(self.box if self.box is not None else (0.0, 0.0, 0.0, 0.0), float)
+            return compiled.nearest_points(np.ascontiguousarray(pts), int(slots),
+                                           float(reach), box, self.box is not None, qa, qb,
+                                           qr, table, origin, shape, shapes, SECTOR_COS)
         cand_off, cand_d = self._surface_candidates(pts, reach)
         p = len(pts)
         offsets = np.zeros((p, slots, 2))
