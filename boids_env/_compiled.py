@@ -306,6 +306,38 @@ def occupied(points, cells, resolution, x0, y0, c, s):  # pragma: no cover - com
     return out
 
 
+@njit(cache=True)
+def in_sight_ahead(points, node, nxt, centres, free, origin_x, origin_y, cell, t,
+                   steps):  # pragma: no cover - compiled
+    """``route._in_sight_ahead``: the farthest node up to ``steps`` nodes along each
+    follower's route (``nxt``) that it sees through free cells (``free`` (H, W)) at the
+    samples ``t`` of each sight line, every earlier one seen too; the next node where it
+    sees none."""
+    h, w = free.shape
+    out = np.empty(points.shape[0], dtype=np.intp)
+    for i in range(points.shape[0]):
+        px = points[i, 0]
+        py = points[i, 1]
+        cur = nxt[node[i]]
+        best = cur
+        for _ in range(steps):
+            ex = centres[cur, 0] - px
+            ey = centres[cur, 1] - py
+            seen = True
+            for s in range(1, t.shape[0]):  # the follower's own spot may touch a wall
+                col = math.floor((px + t[s] * ex - origin_x) / cell)
+                row = math.floor((py + t[s] * ey - origin_y) / cell)
+                if not (0 <= col < w and 0 <= row < h and free[row, col]):
+                    seen = False
+                    break
+            if not seen:
+                break
+            best = cur
+            cur = nxt[cur]
+        out[i] = best
+    return out
+
+
 # ------------------------------------------------------------------ the safety filter
 _FREE = 1e9
 _TOLERANCE = 1e-9

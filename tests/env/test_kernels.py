@@ -86,6 +86,8 @@ EPISODES = [
       "reward": "safe", "frame": "leader"}, "random", 250),
     ({"scene": "small_room", "robots": 31, "safety_filter": True, "static_slots": 3,
       "reward": "safe"}, "reynolds", 250),
+    # route sensing (the sight lines along each follower's route)
+    ({"scene": "lab", "robots": 13, "route_sensing": True}, "reynolds", 300),
     # the learned followers for a lab (the compiled actor, filter and static slots)
     ({"scene": "lab"}, "learned-scenes", None),
 ]
@@ -420,3 +422,24 @@ def test_exact_product_and_tanh_kernels_give_the_numpy_bits_inside_the_actor():
     want = exact.tanh(y)
     _compiled._exact_tanh(y, exact.INV_LN2, exact.LN2, exact.TANH_ONE)
     _same(y, want, "tanh")
+
+
+@pytest.mark.parametrize("name", ["lab", "doorway", "floorplan:3"])
+def test_route_sensing_kernel_matches_the_reference(name):
+    """Followers anywhere (in walls, off the map, on the leader), leaders anywhere free."""
+    from boids_env.world.route import route_grid, sense_route
+
+    scene = _scene(name)
+    grid = route_grid(scene, 0.036)
+    rng = np.random.default_rng(13)
+    x0, y0, x1, y1 = scene.bounds
+    for trial in range(40):
+        leader = grid.centres[rng.integers(len(grid.centres))]
+        points = rng.uniform([x0 - 0.3, y0 - 0.3], [x1 + 0.3, y1 + 0.3], (30, 2))
+        points[0] = leader
+        positions = np.vstack([leader, points])
+        got = sense_route(grid, positions)
+        with kernels.reference():
+            want = sense_route(grid, positions)
+        for g, w, what in zip(got, want, ("direction", "length", "valid"), strict=True):
+            _same(g, w, f"trial {trial} {what}")
