@@ -291,6 +291,21 @@ def shape_clearance(points, qa, qb, qr, table, origin, shape):  # pragma: no cov
 
 
 @njit(cache=True)
+def capsule_clearance(points, qa, qb, qr):  # pragma: no cover - compiled
+    """``Scene.clearance``'s capsule part: each point's distance (P,) to the nearest of all
+    capsule surfaces (a minimum: exact in any order)."""
+    out = np.empty(points.shape[0])
+    for i in range(points.shape[0]):
+        best = np.inf
+        for q in range(qr.shape[0]):
+            d = _closest(points[i, 0], points[i, 1], qa[q, 0], qa[q, 1], qb[q, 0],
+                         qb[q, 1])[2] - qr[q]
+            best = d if d < best else best
+        out[i] = best
+    return out
+
+
+@njit(cache=True)
 def occupied(points, cells, resolution, x0, y0, c, s):  # pragma: no cover - compiled
     """``OccupancyGrid.occupied``: whether each point lies in an occupied or unknown cell or
     off the map (``c, s``: the cosine and sine of the map's yaw)."""
@@ -335,6 +350,46 @@ def in_sight_ahead(points, node, nxt, centres, free, origin_x, origin_y, cell, t
             best = cur
             cur = nxt[cur]
         out[i] = best
+    return out
+
+
+@njit(cache=True)
+def _segments_distance(p0x, p0y, p1x, p1y, ax, ay, bx, by):  # pragma: no cover - compiled
+    """``geometry.segments_distance`` of two segments (0 where they cross)."""
+    d0 = _closest(p0x, p0y, ax, ay, bx, by)[2]
+    d1 = _closest(p1x, p1y, ax, ay, bx, by)[2]
+    d2 = _closest(ax, ay, p0x, p0y, p1x, p1y)[2]
+    d3 = _closest(bx, by, p0x, p0y, p1x, p1y)[2]
+    first = d0 if d0 < d1 else d1
+    second = d2 if d2 < d3 else d3
+    d = first if first < second else second
+    ux = p1x - p0x
+    uy = p1y - p0y
+    vx = bx - ax
+    vy = by - ay
+    wx = ax - p0x
+    wy = ay - p0y
+    denom = ux * vy - uy * vx
+    if denom != 0:
+        s = (wx * vy - wy * vx) / denom
+        t = (wx * uy - wy * ux) / denom
+        if 0 <= s <= 1 and 0 <= t <= 1:
+            return 0.0
+    return d
+
+
+@njit(cache=True)
+def segments_blocked(starts, ends, qa, qb, qr, clearance):  # pragma: no cover - compiled
+    """``Scene.blocked``'s capsule test: for each segment (L,) the first capsule it passes
+    within ``clearance`` of (``segments_distance - radius < clearance``), -1 where none."""
+    out = np.full(starts.shape[0], -1, dtype=np.intp)
+    for i in range(starts.shape[0]):
+        for q in range(qr.shape[0]):
+            d = _segments_distance(starts[i, 0], starts[i, 1], ends[i, 0], ends[i, 1],
+                                   qa[q, 0], qa[q, 1], qb[q, 0], qb[q, 1])
+            if d - qr[q] < clearance:
+                out[i] = q
+                break
     return out
 
 

@@ -292,7 +292,13 @@ class Scene:
         best = np.full(len(flat), np.inf)
         if self.box is not None:
             best = np.minimum(best, self._box_gaps(flat).min(axis=1))
-        if len(self._qr):
+        compiled = kernels.compiled()
+        if len(self._qr) and compiled is not None and np.isfinite(flat).all():
+            # the same minimum in one loop (boids_env.kernels)
+            best = np.minimum(best, compiled.capsule_clearance(
+                np.ascontiguousarray(flat), np.ascontiguousarray(self._qa),
+                np.ascontiguousarray(self._qb), np.ascontiguousarray(self._qr)))
+        elif len(self._qr):
             qa, qb, qr = self._qa, self._qb, self._qr
             for start in range(0, len(qr), 256):  # exact for any distance: all shapes
                 sl = slice(start, start + 256)
@@ -424,16 +430,7 @@ class Scene:
         cannot cross occupied cells without crossing a contour, so without it only the
         contours are tested)."""
         starts, ends = np.atleast_2d(starts).astype(float), np.atleast_2d(ends).astype(float)
-        out = np.zeros(len(starts), dtype=bool)
-        which = np.full(len(starts), -1, dtype=np.intp)
-        chunk = max(1, 1_000_000 // max(len(self._qr), 1))  # bounds the (L, S) temporaries
-        for lo in range(0, len(starts) if len(self._qr) else 0, chunk):
-            sl = slice(lo, lo + chunk)
-            d = geo.segments_distance(starts[sl, None], ends[sl, None], self._qa[None],
-                                      self._qb[None]) - self._qr[None]
-            hit = d < clearance
-            out[sl] = hit.any(axis=1)
-            which[sl] = np.where(out[sl], self._owner[np.argmax(hit, axis=1)], -1)
+        out, which = self._capsules_blocked(starts, ends, clearance)
         for k, poly in enumerate(self.polygons):  # a segment wholly inside a block
             inside = geo.points_in_polygon(starts, poly) | geo.points_in_polygon(ends, poly)
             fresh = inside & ~out
@@ -445,6 +442,33 @@ class Scene:
                 t = np.linspace(0.0, 1.0, n)[:, None]
                 if self.grid.occupied(starts[i] + t * (ends[i] - starts[i])).any():
                     out[i] = True
+        return out, which
+
+    def _capsules_blocked(self, starts: FloatArray, ends: FloatArray, clearance: float
+                          ) -> tuple[BoolArray, npt.NDArray[np.intp]]:
+        """:meth:`blocked`'s test of the capsules and polygon edges: whether each segment
+        passes within ``clearance`` of one, and the first one's shape (−1 where none)."""
+        if not len(self._qr):
+            return np.zeros(len(starts), dtype=bool), np.full(len(starts), -1, dtype=np.intp)
+        compiled = kernels.compiled()
+        if compiled is not None and np.isfinite(starts).all() and np.isfinite(ends).all():
+            # the same distances and first hits in one loop (boids_env.kernels)
+            first = compiled.segments_blocked(
+                np.ascontiguousarray(starts), np.ascontiguousarray(ends),
+                np.ascontiguousarray(self._qa), np.ascontiguousarray(self._qb),
+                np.ascontiguousarray(self._qr), float(clearance))
+            hit = first >= 0
+            return hit, np.where(hit, self._owner[np.maximum(first, 0)], -1)
+        out = np.zeros(len(starts), dtype=bool)
+        which = np.full(len(starts), -1, dtype=np.intp)
+        chunk = max(1, 1_000_000 // len(self._qr))  # bounds the (L, S) temporaries
+        for lo in range(0, len(starts), chunk):
+            sl = slice(lo, lo + chunk)
+            d = geo.segments_distance(starts[sl, None], ends[sl, None], self._qa[None],
+                                      self._qb[None]) - self._qr[None]
+            hit = d < clearance
+            out[sl] = hit.any(axis=1)
+            which[sl] = np.where(out[sl], self._owner[np.argmax(hit, axis=1)], -1)
         return out, which
 
     def occupancy(self, resolution: float = 0.05) -> OccupancyGrid:

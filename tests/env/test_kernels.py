@@ -356,6 +356,9 @@ def test_scene_query_kernels_match_the_reference(name):
             want = scene.nearest_points(points, slots, reach)
         _same(got[0], want[0], f"offsets {slots} {reach}")
         _same(got[1], want[1], f"valid {slots} {reach}")
+    got = scene.clearance(points)
+    with kernels.reference():
+        _same(got, scene.clearance(points), "clearance")
     for margins in ((0.036, 0.005), (0.25,), (0.5, 0.1)):
         got = scene.within(points, *margins)
         with kernels.reference():
@@ -443,3 +446,30 @@ def test_route_sensing_kernel_matches_the_reference(name):
             want = sense_route(grid, positions)
         for g, w, what in zip(got, want, ("direction", "length", "valid"), strict=True):
             _same(g, w, f"trial {trial} {what}")
+
+
+@pytest.mark.parametrize("name", ["lab", "pillars", "doorway", "floorplan:3", "corridor"])
+def test_blocked_segments_kernel_matches_the_reference(name):
+    """Sight lines anywhere, some ending on a capsule's surface or axis, some of no length,
+    at clearance 0 (line of sight) and 0.1 m (path checks)."""
+    from boids_env.metrics import line_of_sight
+
+    scene = _scene(name)
+    rng = np.random.default_rng(17)
+    x0, y0, x1, y1 = scene.bounds
+    starts = rng.uniform([x0, y0], [x1, y1], (600, 2))
+    ends = rng.uniform([x0, y0], [x1, y1], (600, 2))
+    ends[:50] = starts[:50]
+    if len(scene.a):
+        ends[50:100] = scene.a[rng.integers(len(scene.a), size=50)]
+    for clearance in (0.0, 0.1):
+        for grid in (True, False):
+            got = scene.blocked(starts, ends, clearance, use_grid=grid)
+            with kernels.reference():
+                want = scene.blocked(starts, ends, clearance, use_grid=grid)
+            _same(got[0], want[0], f"blocked {clearance} {grid}")
+            _same(got[1], want[1], f"which {clearance} {grid}")
+    positions = rng.uniform([x0, y0], [x1, y1], (40, 9, 2))
+    got = line_of_sight(positions, scene)
+    with kernels.reference():
+        _same(got, line_of_sight(positions, scene), "line of sight")
