@@ -603,9 +603,9 @@ def _solve(cx, cy, a, b, hard, excess):  # pragma: no cover - compiled
 
 
 # ------------------------------------------------------------------ exact MLP products
-# boids_env.policies.exact in loops. The products are exact (every partial sum an integer
-# below 2^53, see that module), so the loop's summation order gives the bits any BLAS kernel
-# gives; tanh takes the same + - * / in the same order.
+# boids_env.policies.exact's elementwise parts in loops: the integer slices before the
+# products (which stay numpy's BLAS calls: exact in any order, see that module) and the sums,
+# scalings, bias and tanh after them, the same + - * / in the same order.
 _SLICE = 65536.0
 _PADE_1680 = 1.0 / 1680.0
 _PADE_3_28 = 3.0 / 28.0
@@ -615,31 +615,37 @@ _HALVINGS = np.ldexp(1.0, -np.arange(65))
 
 
 @njit(cache=True)
-def _exact_layer(x, q, column_scale, bias, rows_per_call):  # pragma: no cover - compiled
-    """``exact.ExactLinear(x)``: ``x @ w + b`` for ``x`` (F, K) float64; the integer
-    product through BLAS (exact: any kernel gives these bits), at most ``rows_per_call``
-    rows a call (one thread)."""
+def exact_slices(x):  # pragma: no cover - compiled
+    """``exact.ExactLinear``'s integer slices of ``x`` (F, K) (float32 or float64, finite):
+    ``(slices (2F, K), exponents (F,))``, the high slices' rows then the low ones'."""
     f, inputs = x.shape
-    outputs = q.shape[1]
     slices = np.empty((2 * f, inputs))
     exponents = np.empty(f, dtype=np.int64)
     for i in range(f):
         biggest = 0.0
         for j in range(inputs):
-            v = abs(x[i, j])
+            v = abs(np.float64(x[i, j]))
             biggest = v if v > biggest else biggest
         e = math.frexp(biggest)[1]
         exponents[i] = e
         up = _power_of_two(16 - e)  # x * 2^k, correctly rounded: ldexp's bits
         for j in range(inputs):
-            scaled = x[i, j] * up if up > 0.0 else math.ldexp(x[i, j], 16 - e)
+            v = np.float64(x[i, j])
+            scaled = v * up if up > 0.0 else math.ldexp(v, 16 - e)
             h = np.rint(scaled)
             slices[i, j] = h
             slices[f + i, j] = np.rint((scaled - h) * _SLICE)
-    both = np.empty((2 * f, outputs))
-    for start in range(0, 2 * f, rows_per_call):
-        end = min(start + rows_per_call, 2 * f)
-        both[start:end] = np.dot(slices[start:end], q)
+    return slices, exponents
+
+
+@njit(cache=True)
+def exact_combine(both, exponents, column_scale, bias, activation, inv_ln2, ln2,
+                  one):  # pragma: no cover - compiled
+    """``exact.ExactLinear``'s result from the slices' products ``both`` (2F, H): the two
+    slices added, scaled back, the bias added; then the activation (0 none, 1 tanh, 2
+    ReLU)."""
+    f = exponents.shape[0]
+    outputs = both.shape[1]
     out = np.empty((f, outputs))
     for i in range(f):
         e = exponents[i]
@@ -648,6 +654,12 @@ def _exact_layer(x, q, column_scale, bias, rows_per_call):  # pragma: no cover -
             total = both[i, c] + both[f + i, c] * (1.0 / _SLICE)
             total = total * up if up > 0.0 else math.ldexp(total, e)
             out[i, c] = total * column_scale[0, c] + bias[c]
+    if activation == 1:
+        _exact_tanh(out, inv_ln2, ln2, one)
+    elif activation == 2:
+        for i in range(f):
+            for c in range(outputs):
+                out[i, c] = out[i, c] if out[i, c] > 0.0 else 0.0
     return out
 
 
@@ -682,23 +694,9 @@ def _exact_tanh(y, inv_ln2, ln2, one):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def mlp_actions(obs, qs, scales, biases, rows_per_call, use_tanh, inv_ln2, ln2, one, low,
-                high):  # pragma: no cover - compiled
-    """``MLPActor.act_batch`` of finite observations (F, D) float32: the actions (F, 2)
-    float32; ``qs, scales, biases`` are the layers' ``ExactLinear`` arrays (tuples), the
-    activation tanh (``use_tanh``) or ReLU, ``rows_per_call`` each layer's rows per BLAS
-    call."""
-    y = obs.astype(np.float64)
-    layers = len(qs)
-    for layer in range(layers):
-        y = _exact_layer(y, qs[layer], scales[layer], biases[layer], rows_per_call[layer])
-        if layer + 1 < layers:
-            if use_tanh:
-                _exact_tanh(y, inv_ln2, ln2, one)
-            else:
-                for i in range(y.shape[0]):
-                    for c in range(y.shape[1]):
-                        y[i, c] = y[i, c] if y[i, c] > 0.0 else 0.0
+def clip_actions(y, low, high):  # pragma: no cover - compiled
+    """``MLPActor.act_batch``'s last step: ``np.clip(y.reshape(-1, 2), low, high)`` as
+    float32 (the clip keeps ``v`` unless it is out of range, as numpy's does)."""
     flat = y.reshape(-1, 2)
     out = np.empty(flat.shape, dtype=np.float32)
     for i in range(flat.shape[0]):
@@ -706,7 +704,7 @@ def mlp_actions(obs, qs, scales, biases, rows_per_call, use_tanh, inv_ln2, ln2, 
             v = flat[i, c]
             lo = np.float64(low[c])
             hi = np.float64(high[c])
-            v = lo if v < lo else v  # np.clip keeps v unless it is out of range
+            v = lo if v < lo else v
             v = hi if v > hi else v
             out[i, c] = np.float32(v)
     return out

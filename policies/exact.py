@@ -78,6 +78,16 @@ class ExactLinear:
         self.bias = np.asarray(bias, dtype=np.float64)
         self.rows_per_call = max(1, SINGLE_THREAD_PRODUCT // w.size)
 
+    def products(self, slices: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """The integer slices' rows (R, K) times the weight integers: one product for both
+        slices (rows stacked), exact in any summation order, since every partial sum is an
+        integer below 2^53; at most :data:`SINGLE_THREAD_PRODUCT` multiply-adds a call."""
+        both = np.empty((len(slices), self.q.shape[1]))
+        for start in range(0, len(slices), self.rows_per_call):
+            end = start + self.rows_per_call
+            np.matmul(slices[start:end], self.q, out=both[start:end])
+        return both
+
     def __call__(self, x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """``x @ w + b`` for ``x`` (F, K) float64."""
         n = len(x)
@@ -88,12 +98,7 @@ class ExactLinear:
         # scaled - high is exact (a float minus its nearest integer); |low| <= 2^15
         np.subtract(scaled, high, out=scaled)
         np.rint(np.multiply(scaled, _SLICE, out=scaled), out=slices[n:])
-        # one product for both slices (rows stacked): exact in any summation order, since
-        # every partial sum is an integer below 2^53
-        both = np.empty((2 * n, self.q.shape[1]))
-        for start in range(0, 2 * n, self.rows_per_call):
-            end = start + self.rows_per_call
-            np.matmul(slices[start:end], self.q, out=both[start:end])
+        both = self.products(slices)
         total = np.add(both[:n], np.multiply(both[n:], 1.0 / _SLICE, out=both[n:]))
         # the row's and the column's powers of two (exact), then the bias (one rounding)
         np.multiply(np.ldexp(total, rows, out=total), self.column_scale, out=total)

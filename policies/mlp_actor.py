@@ -27,6 +27,8 @@ from boids_env.policies.base import BatchPolicy
 
 ACTOR_ENTRY = "boids_actor.npz"
 ACTIVATIONS = {"tanh": exact.tanh, "relu": exact.relu}
+_ACTIVATION_CODES = {"tanh": 1, "relu": 2}
+"""The compiled path's names for :data:`ACTIVATIONS` (0: none, the action head)."""
 
 
 class MLPActor(BatchPolicy):
@@ -67,12 +69,6 @@ class MLPActor(BatchPolicy):
         self.env_fields = dict(env_fields or {})
         self.name = name
         self.obs_size = int(weights[0].shape[1])
-        # the compiled forward pass's arrays: each layer's integers, scales and bias
-        self._kernel_layers = (tuple(np.ascontiguousarray(layer.q) for layer in self.layers),
-                               tuple(np.ascontiguousarray(layer.column_scale)
-                                     for layer in self.layers),
-                               tuple(np.ascontiguousarray(layer.bias) for layer in self.layers),
-                               tuple(layer.rows_per_call for layer in self.layers))
         self._bounds = np.array(np.broadcast_arrays(self.low, self.high), dtype=np.float32)
 
     def act_batch(self, obs: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
@@ -85,10 +81,17 @@ class MLPActor(BatchPolicy):
                 f"{x.shape}; make the env with the model's env_fields {self.env_fields}")
         compiled = kernels.compiled()
         if compiled is not None and self._bounds.shape == (2, 2) and np.isfinite(x).all():
-            # the same bits in one loop (every product exact: see policies.exact)
-            return compiled.mlp_actions(
-                np.ascontiguousarray(x), *self._kernel_layers, self.activation == "tanh",
-                exact.INV_LN2, exact.LN2, exact.TANH_ONE, self._bounds[0], self._bounds[1])
+            # the same bits in fewer calls: the elementwise parts compiled, the exact
+            # products numpy's as below (policies.exact)
+            y: npt.NDArray[Any] = np.ascontiguousarray(x)
+            code = _ACTIVATION_CODES[self.activation]
+            for k, layer in enumerate(self.layers):
+                slices, exponents = compiled.exact_slices(y)
+                y = compiled.exact_combine(layer.products(slices), exponents,
+                                           layer.column_scale, layer.bias,
+                                           code if k + 1 < len(self.layers) else 0,
+                                           exact.INV_LN2, exact.LN2, exact.TANH_ONE)
+            return compiled.clip_actions(y, self._bounds[0], self._bounds[1])
         act = ACTIVATIONS[self.activation]
         y = x.astype(np.float64)
         for layer in self.layers[:-1]:

@@ -417,9 +417,14 @@ def test_exact_product_and_tanh_kernels_give_the_numpy_bits_inside_the_actor():
         x = rng.normal(0, 1, (rows, inputs)) * rng.choice([1e-200, 1e-5, 1.0, 1e200], (rows, 1))
         if rows:
             x[0] = 0.0
-        got = _compiled._exact_layer(x, np.ascontiguousarray(layer.q), layer.column_scale,
-                                     layer.bias, layer.rows_per_call)
+        slices, exponents = _compiled.exact_slices(x)
+        got = _compiled.exact_combine(layer.products(slices), exponents, layer.column_scale,
+                                      layer.bias, 0, exact.INV_LN2, exact.LN2, exact.TANH_ONE)
         _same(got, layer(x), f"layer {inputs}x{outputs}")
+        with_tanh = _compiled.exact_combine(layer.products(slices), exponents,
+                                            layer.column_scale, layer.bias, 1, exact.INV_LN2,
+                                            exact.LN2, exact.TANH_ONE)
+        _same(with_tanh, exact.tanh(layer(x)), f"layer {inputs}x{outputs} tanh")
     y = np.concatenate([rng.normal(0, s, 2000) for s in (1e-8, 0.01, 0.5, 3.0, 30.0)])
     y = np.concatenate([y, [0.0, -0.0, 20.0, -20.0, 1e300]]).reshape(-1, 5)
     want = exact.tanh(y)
