@@ -393,6 +393,112 @@ def segments_blocked(starts, ends, qa, qb, qr, clearance):  # pragma: no cover -
     return out
 
 
+@njit(cache=True)
+def _ray_circle(ox, oy, dx, dy, cx, cy, r):  # pragma: no cover - compiled
+    """``geometry.ray_circles`` of one ray and circle."""
+    relx = cx - ox
+    rely = cy - oy
+    along = relx * dx + rely * dy
+    across2 = (relx * relx + rely * rely) - along * along
+    disc = r * r - across2
+    root = math.sqrt(disc if disc > 0.0 else 0.0)
+    if relx * relx + rely * rely <= r * r:
+        return 0.0
+    t = along - root
+    if disc >= 0 and along + root >= 0 and t >= 0:
+        return t
+    return np.inf
+
+
+@njit(cache=True)
+def _ray_segment(ox, oy, dx, dy, ax, ay, bx, by):  # pragma: no cover - compiled
+    """``geometry.ray_segments`` of one ray and segment."""
+    vx = bx - ax
+    vy = by - ay
+    wx = ax - ox
+    wy = ay - oy
+    denom = dx * vy - dy * vx
+    if denom == 0:
+        return np.inf
+    t = (wx * vy - wy * vx) / denom
+    s = (wx * dy - wy * dx) / denom
+    return t if t >= 0 and s >= 0 and s <= 1 else np.inf
+
+
+@njit(cache=True)
+def _ray_capsule(ox, oy, dx, dy, ax, ay, bx, by, r):  # pragma: no cover - compiled
+    """``geometry.ray_capsules`` of one ray and capsule."""
+    e0 = _ray_circle(ox, oy, dx, dy, ax, ay, r)
+    e1 = _ray_circle(ox, oy, dx, dy, bx, by, r)
+    ends = e0 if e0 < e1 else e1
+    vx = bx - ax
+    vy = by - ay
+    length = math.sqrt(vx * vx + vy * vy)
+    sides = np.inf
+    if length > 0:
+        offx = (-vy / length) * r
+        offy = (vx / length) * r
+        s0 = _ray_segment(ox, oy, dx, dy, ax + offx, ay + offy, bx + offx, by + offy)
+        s1 = _ray_segment(ox, oy, dx, dy, ax - offx, ay - offy, bx - offx, by - offy)
+        sides = s0 if s0 < s1 else s1
+    if _closest(ox, oy, ax, ay, bx, by)[2] <= r:
+        return 0.0
+    return ends if ends < sides else sides
+
+
+@njit(cache=True)
+def raycast(origins, directions, box, has_box, qa, qb, qr, table, origin, shape,
+            has_shapes):  # pragma: no cover - compiled
+    """``Scene.raycast`` before its map cells and range cap: the distance (P, R) along each
+    ray ``directions`` (P, R, 2) from ``origins`` (P, 2) to the box's walls and the
+    capsules of each origin's index row (inf where none)."""
+    p, rays = directions.shape[0], directions.shape[1]
+    out = np.full((p, rays), np.inf)
+    for i in range(p):
+        ox = origins[i, 0]
+        oy = origins[i, 1]
+        row = _index_row(ox, oy, origin, shape) if has_shapes else 0
+        for k in range(rays):
+            dx = directions[i, k, 0]
+            dy = directions[i, k, 1]
+            best = np.inf
+            if has_box:
+                tx = ((box[2] - ox) / dx if dx > 0 else
+                      ((box[0] - ox) / dx if dx < 0 else np.inf))
+                ty = ((box[3] - oy) / dy if dy > 0 else
+                      ((box[1] - oy) / dy if dy < 0 else np.inf))
+                best = tx if tx < ty else ty
+                best = best if best > 0.0 else 0.0
+            if has_shapes:
+                hit = np.inf
+                for s in range(table.shape[1]):
+                    q = table[row, s]
+                    h = _ray_capsule(ox, oy, dx, dy, qa[q, 0], qa[q, 1], qb[q, 0], qb[q, 1],
+                                     qr[q])
+                    hit = h if h < hit else hit
+                best = best if best < hit else hit
+            out[i, k] = best
+    return out
+
+
+@njit(cache=True)
+def ray_circles_nearest(origins, directions, centres, radii):  # pragma: no cover - compiled
+    """``observations._ranges_along``' robot discs: the distance (F, R) along each ray to
+    the nearest of each follower's discs ``centres`` (F, K, 2) of ``radii`` (F, K)."""
+    f, rays = directions.shape[0], directions.shape[1]
+    out = np.empty((f, rays))
+    for i in range(f):
+        for k in range(rays):
+            hit = np.inf
+            for j in range(centres.shape[1]):
+                h = _ray_circle(origins[i, 0], origins[i, 1], directions[i, k, 0],
+                                directions[i, k, 1], centres[i, j, 0], centres[i, j, 1],
+                                radii[i, j])
+                hit = h if h < hit else hit
+            out[i, k] = hit
+    return out
+
+
 # ------------------------------------------------------------------ the safety filter
 _FREE = 1e9
 _TOLERANCE = 1e-9

@@ -399,6 +399,22 @@ class Scene:
             directions: (P, R, 2) unit ray directions.
             max_range: the sensor's range (m); no hit reads ``max_range``.
         """
+        compiled = kernels.compiled()
+        shapes = len(self._qr) > 0
+        if (compiled is not None and directions.ndim == 3 and np.isfinite(origins).all()
+                and np.isfinite(directions).all()):  # the same ranges in one loop
+            qa, qb, qr = self._query_arrays()
+            origin, shape, table = (self._kernel_index(max_range) if shapes
+                                    else (np.zeros(3), np.ones(2, dtype=np.intp),
+                                          np.zeros((1, 1), dtype=np.intp)))
+            box = np.array(self.box if self.box is not None else (0.0, 0.0, 0.0, 0.0), float)
+            best = compiled.raycast(np.ascontiguousarray(origins, dtype=np.float64),
+                                    np.ascontiguousarray(directions, dtype=np.float64), box,
+                                    self.box is not None, qa, qb, qr, table, origin, shape,
+                                    shapes)
+            if self.grid is not None:
+                best = np.where(self.grid.occupied(origins)[:, None], 0.0, best)
+            return np.minimum(best, max_range)
         best = np.full(directions.shape[:2], np.inf)
         o = origins[:, None, :]
         if self.box is not None:

@@ -86,6 +86,9 @@ EPISODES = [
       "reward": "safe", "frame": "leader"}, "random", 250),
     ({"scene": "small_room", "robots": 31, "safety_filter": True, "static_slots": 3,
       "reward": "safe"}, "reynolds", 250),
+    # a lidar with a person leading (a wider disc than a robot's) in a walled room
+    ({"scene": "small_room", "leader": "person", "lidar_rays": 12, "robots": 7}, "random",
+     120),
     # route sensing (the sight lines along each follower's route)
     ({"scene": "lab", "robots": 13, "route_sensing": True}, "reynolds", 300),
     # the learned followers for a lab (the compiled actor, filter and static slots)
@@ -478,3 +481,23 @@ def test_blocked_segments_kernel_matches_the_reference(name):
     got = line_of_sight(positions, scene)
     with kernels.reference():
         _same(got, line_of_sight(positions, scene), "line of sight")
+
+
+@pytest.mark.parametrize("name", ["lab", "small_room", "pillars", "arena", "floorplan:3"])
+def test_raycast_kernel_matches_the_reference(name):
+    """Rays from anywhere (inside walls and pillars, off the map) in every direction, the
+    axes' included (a zero component)."""
+    scene = _scene(name)
+    rng = np.random.default_rng(19)
+    x0, y0, x1, y1 = scene.bounds
+    origins = rng.uniform([x0 - 0.2, y0 - 0.2], [x1 + 0.2, y1 + 0.2], (300, 2))
+    origins = np.vstack([origins, _crowd_near_walls(rng, scene, 60)])
+    angles = np.concatenate([rng.uniform(0, 2 * np.pi, 12), np.arange(4) * np.pi / 2])
+    directions = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    directions[12:] = [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]]
+    directions = np.broadcast_to(directions, (len(origins), 16, 2))
+    for max_range in (0.5, 3.0):
+        got = scene.raycast(origins, directions, max_range)
+        with kernels.reference():
+            want = scene.raycast(origins, directions, max_range)
+        _same(got, want, f"ranges {max_range}")
