@@ -467,8 +467,8 @@ class Scene:
         if not len(self._qr):
             return np.zeros(len(starts), dtype=bool), np.full(len(starts), -1, dtype=np.intp)
         compiled = kernels.compiled()
-        if compiled is not None and np.isfinite(starts).all() and np.isfinite(ends).all():
-            # the same distances and first hits in one loop (boids_env.kernels)
+        if (compiled is not None and starts.shape == ends.shape and np.isfinite(starts).all()
+                and np.isfinite(ends).all()):  # the same distances and first hits in one loop
             first = compiled.segments_blocked(
                 np.ascontiguousarray(starts), np.ascontiguousarray(ends),
                 np.ascontiguousarray(self._qa), np.ascontiguousarray(self._qb),
