@@ -401,8 +401,9 @@ class Scene:
         """
         compiled = kernels.compiled()
         shapes = len(self._qr) > 0
-        if (compiled is not None and directions.ndim == 3 and np.isfinite(origins).all()
-                and np.isfinite(directions).all()):  # the same ranges in one loop
+        if (compiled is not None and directions.ndim == 3 and len(directions) == len(origins)
+                and np.isfinite(origins).all() and np.isfinite(directions).all()):
+            # the same ranges in one loop (boids_env.kernels)
             qa, qb, qr = self._query_arrays()
             origin, shape, table = (self._kernel_index(max_range) if shapes
                                     else (np.zeros(3), np.ones(2, dtype=np.intp),
