@@ -286,8 +286,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _slow_rows(out: dict[str, Any], training_only: bool) -> None:
-    """Training scaling, learned-vs-Reynolds episode cost and the paper suite (they need the
-    train and eval extras; skipped with a note without them)."""
+    """Training scaling, learned-vs-Reynolds episode costs (the default case and the lab)
+    and the paper suite (training needs the train extra; skipped with a note without it)."""
     from boids_env.bench import training
     from boids_env.extras import missing
 
@@ -308,6 +308,10 @@ def _slow_rows(out: dict[str, Any], training_only: bool) -> None:
             print(f"whole boids run command: Reynolds {whole['reynolds']:.2f} s, learned "
                   f"{whole['learned']:.2f} s ({whole['learned_over_reynolds']:.2f}×)")
     if not training_only:
+        lab = out["lab_episode_seconds"] = training.lab_episode_costs()
+        print("one lab episode, CPU s (Reynolds, learned-scenes) by round: "
+              + ", ".join(f"{a:.3f}/{b:.3f}" for a, b in lab["rounds"])
+              + f" ({lab['learned_scenes_over_reynolds']:.2f}×)")
         suite = training.paper_suite_seconds()
         out["paper_suite_seconds"] = suite
         if suite is not None:

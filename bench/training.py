@@ -120,6 +120,36 @@ def episode_costs(seeds: int = 3) -> dict[str, float]:
     return out
 
 
+def lab_episode_costs(rounds: int = 3, max_cycles: int | None = None) -> dict[str, Any]:
+    """CPU seconds of one ``lab`` episode of the followers for a lab (``learned-scenes``:
+    the actor, the safety filter, the wall slots) and of the Reynolds policy, in turn, each
+    round the best of two: ``{"rounds": [(reynolds, learned), ...],
+    "learned_scenes_over_reynolds": the median of the rounds' quotients}``."""
+    import statistics
+
+    from boids_env.environment import BoidsEnv
+    from boids_env.eval.episode import env_fields_for, run_episode
+    from boids_env.policies.registry import load_policy
+
+    fields = {"scene": "lab", **({"max_cycles": max_cycles} if max_cycles else {})}
+    runs = []
+    for spec in ("reynolds", "learned-scenes"):
+        policy = load_policy(spec)
+        env = BoidsEnv(**env_fields_for(policy, fields))
+        run_episode(env, policy, 0)  # warm-up: caches, route fields, compiled kernels
+        runs.append((env, policy))
+
+    def cost(env: Any, policy: Any, seed: int) -> float:
+        start = time.process_time()
+        run_episode(env, policy, seed)
+        return time.process_time() - start
+
+    rows = [tuple(min(cost(env, policy, seed) for seed in (1, 2)) for env, policy in runs)
+            for _ in range(rounds)]
+    return {"rounds": rows,
+            "learned_scenes_over_reynolds": statistics.median(b / a for a, b in rows)}
+
+
 def command_costs(repeats: int = 3) -> dict[str, float]:
     """Wall seconds of the whole ``boids run`` command (best of ``repeats``, each a fresh
     process: imports, model load, the episode and its files) for the Reynolds policy and the

@@ -155,3 +155,662 @@ def nearest_other(positions):  # pragma: no cover - compiled
                 best = d
         out[i - 1] = math.sqrt(best)
     return out
+
+
+# ------------------------------------------------------------------ static geometry
+# Ports of boids_env.world.scene's queries on its capsules: the same candidate lists (the
+# scene's spatial index, looked up here), the same operations in the same order as
+# boids_env.world.geometry.closest_on_segments, numpy's minimum and maximum as ``a < b ? a : b``
+# and ``a > b ? a : b`` and its clip as two comparisons that keep ``x`` unless it is out of
+# range (numpy's own rules: signed zeros come out the same).
+
+
+@njit(cache=True)
+def _index_row(px, py, origin, shape):  # pragma: no cover - compiled
+    """The row of the scene's index table for a point (``Scene._candidates``; ``origin``
+    (x, y, cell size))."""
+    cx = math.floor((px - origin[0]) / origin[2])
+    cy = math.floor((py - origin[1]) / origin[2])
+    cx = min(max(cx, 0), shape[0] - 1)
+    cy = min(max(cy, 0), shape[1] - 1)
+    return cx * shape[1] + cy
+
+
+@njit(cache=True)
+def _closest(px, py, ax, ay, bx, by):  # pragma: no cover - compiled
+    """``geometry.closest_on_segments`` of one point and segment: (cx, cy, distance)."""
+    abx = bx - ax
+    aby = by - ay
+    length2 = abx * abx + aby * aby
+    t = ((px - ax) * abx + (py - ay) * aby) / (length2 if length2 > 0 else 1.0)
+    if t < 0.0:  # np.clip: -0.0 stays -0.0
+        t = 0.0
+    if t > 1.0:
+        t = 1.0
+    cx = ax + t * abx
+    cy = ay + t * aby
+    ux = px - cx
+    uy = py - cy
+    return cx, cy, math.sqrt(ux * ux + uy * uy)
+
+
+@njit(cache=True)
+def _surface_candidates(px, py, box, has_box, qa, qb, qr, table, origin, shape, has_shapes,
+                        off, cand_d):  # pragma: no cover - compiled
+    """``Scene._surface_candidates`` of one point into ``off`` (C, 2) and ``cand_d`` (C,):
+    the box's four walls, then the capsules of the point's index row."""
+    nbox = 0
+    if has_box:
+        gaps = (box[2] - px, box[3] - py, px - box[0], py - box[1])
+        for w in range(4):
+            off[w, 0] = _BOX_DIRECTIONS[w, 0] * gaps[w]
+            off[w, 1] = _BOX_DIRECTIONS[w, 1] * gaps[w]
+            cand_d[w] = gaps[w]
+        nbox = 4
+    if has_shapes:
+        row = _index_row(px, py, origin, shape)
+        for s in range(table.shape[1]):
+            q = table[row, s]
+            cx, cy, d = _closest(px, py, qa[q, 0], qa[q, 1], qb[q, 0], qb[q, 1])
+            scale = (d - qr[q]) / d if d > 0 else 0.0
+            off[nbox + s, 0] = (cx - px) * scale
+            off[nbox + s, 1] = (cy - py) * scale
+            gap = d - qr[q]
+            cand_d[nbox + s] = gap if gap > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _pick_slots(off, cand_d, reach, sector_cos, offsets, valid, i):  # pragma: no cover
+    """``Scene.nearest_points``' choice of one point's slots among its candidates."""
+    c = cand_d.shape[0]
+    slots = valid.shape[1]
+    dist = np.empty(c)
+    for s in range(c):
+        dist[s] = cand_d[s] if cand_d[s] <= reach else np.inf
+    for k in range(slots):
+        pick = 0
+        for s in range(1, c):
+            if dist[s] < dist[pick]:
+                pick = s
+        d = dist[pick]
+        if not math.isfinite(d):
+            return  # this slot and the later ones stay empty
+        chx = off[pick, 0]
+        chy = off[pick, 1]
+        offsets[i, k, 0] = chx
+        offsets[i, k, 1] = chy
+        valid[i, k] = True
+        for s in range(c if k + 1 < slots else 0):
+            den = cand_d[s] * d
+            den = den if den > 1e-300 else 1e-300
+            if (off[s, 0] * chx + off[s, 1] * chy) / den > sector_cos:
+                dist[s] = np.inf
+
+
+_BOX_DIRECTIONS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+"""The box's walls' directions (east, north, west, south), as ``Scene`` has them."""
+
+
+@njit(cache=True)
+def nearest_points(points, slots, reach, box, has_box, qa, qb, qr, table, origin, shape,
+                   has_shapes, sector_cos):  # pragma: no cover - compiled
+    """``Scene.nearest_points``: ``(offsets (P, slots, 2), valid (P, slots))``. ``box``
+    (xmin, ymin, xmax, ymax) counts when ``has_box``; ``qa, qb, qr`` are the padded query
+    capsules, ``table, origin, shape`` the index for ``reach`` (when ``has_shapes``)."""
+    p = points.shape[0]
+    c = (4 if has_box else 0) + (table.shape[1] if has_shapes else 0)
+    offsets = np.zeros((p, slots, 2))
+    valid = np.zeros((p, slots), dtype=np.bool_)
+    off = np.empty((c, 2))
+    cand_d = np.empty(c)
+    for i in range(p):
+        _surface_candidates(points[i, 0], points[i, 1], box, has_box, qa, qb, qr, table,
+                            origin, shape, has_shapes, off, cand_d)
+        if c:
+            _pick_slots(off, cand_d, reach, sector_cos, offsets, valid, i)
+    return offsets, valid
+
+
+@njit(cache=True)
+def shape_clearance(points, qa, qb, qr, table, origin, shape):  # pragma: no cover
+    """``Scene._shape_clearance``: each point's distance (P,) to the nearest candidate
+    capsule surface (inf with none)."""
+    p = points.shape[0]
+    out = np.empty(p)
+    for i in range(p):
+        px = points[i, 0]
+        py = points[i, 1]
+        row = _index_row(px, py, origin, shape)
+        best = np.inf
+        for s in range(table.shape[1]):
+            q = table[row, s]
+            d = _closest(px, py, qa[q, 0], qa[q, 1], qb[q, 0], qb[q, 1])[2] - qr[q]
+            best = d if d < best else best
+        out[i] = best
+    return out
+
+
+@njit(cache=True)
+def capsule_clearance(points, qa, qb, qr):  # pragma: no cover - compiled
+    """``Scene.clearance``'s capsule part: each point's distance (P,) to the nearest of all
+    capsule surfaces (a minimum: exact in any order)."""
+    out = np.empty(points.shape[0])
+    for i in range(points.shape[0]):
+        best = np.inf
+        for q in range(qr.shape[0]):
+            d = _closest(points[i, 0], points[i, 1], qa[q, 0], qa[q, 1], qb[q, 0],
+                         qb[q, 1])[2] - qr[q]
+            best = d if d < best else best
+        out[i] = best
+    return out
+
+
+@njit(cache=True)
+def occupied(points, cells, resolution, x0, y0, c, s):  # pragma: no cover - compiled
+    """``OccupancyGrid.occupied``: whether each point lies in an occupied or unknown cell or
+    off the map (``c, s``: the cosine and sine of the map's yaw)."""
+    h, w = cells.shape
+    out = np.ones(points.shape[0], dtype=np.bool_)
+    for i in range(points.shape[0]):
+        rx = points[i, 0] - x0
+        ry = points[i, 1] - y0
+        col = math.floor((rx * c + ry * s) / resolution)
+        row = math.floor((-rx * s + ry * c) / resolution)
+        if 0 <= col < w and 0 <= row < h:
+            out[i] = cells[row, col] != 0
+    return out
+
+
+@njit(cache=True)
+def in_sight_ahead(points, node, nxt, centres, free, origin_x, origin_y, cell, t,
+                   steps):  # pragma: no cover - compiled
+    """``route._in_sight_ahead``: the farthest node up to ``steps`` nodes along each
+    follower's route (``nxt``) that it sees through free cells (``free`` (H, W)) at the
+    samples ``t`` of each sight line, every earlier one seen too; the next node where it
+    sees none."""
+    h, w = free.shape
+    out = np.empty(points.shape[0], dtype=np.intp)
+    for i in range(points.shape[0]):
+        px = points[i, 0]
+        py = points[i, 1]
+        cur = nxt[node[i]]
+        best = cur
+        for _ in range(steps):
+            ex = centres[cur, 0] - px
+            ey = centres[cur, 1] - py
+            seen = True
+            for s in range(1, t.shape[0]):  # the follower's own spot may touch a wall
+                col = math.floor((px + t[s] * ex - origin_x) / cell)
+                row = math.floor((py + t[s] * ey - origin_y) / cell)
+                if not (0 <= col < w and 0 <= row < h and free[row, col]):
+                    seen = False
+                    break
+            if not seen:
+                break
+            best = cur
+            cur = nxt[cur]
+        out[i] = best
+    return out
+
+
+@njit(cache=True)
+def _segments_distance(p0x, p0y, p1x, p1y, ax, ay, bx, by):  # pragma: no cover - compiled
+    """``geometry.segments_distance`` of two segments (0 where they cross)."""
+    d0 = _closest(p0x, p0y, ax, ay, bx, by)[2]
+    d1 = _closest(p1x, p1y, ax, ay, bx, by)[2]
+    d2 = _closest(ax, ay, p0x, p0y, p1x, p1y)[2]
+    d3 = _closest(bx, by, p0x, p0y, p1x, p1y)[2]
+    first = d0 if d0 < d1 else d1
+    second = d2 if d2 < d3 else d3
+    d = first if first < second else second
+    ux = p1x - p0x
+    uy = p1y - p0y
+    vx = bx - ax
+    vy = by - ay
+    wx = ax - p0x
+    wy = ay - p0y
+    denom = ux * vy - uy * vx
+    if denom != 0:
+        s = (wx * vy - wy * vx) / denom
+        t = (wx * uy - wy * ux) / denom
+        if 0 <= s <= 1 and 0 <= t <= 1:
+            return 0.0
+    return d
+
+
+@njit(cache=True)
+def segments_blocked(starts, ends, qa, qb, qr, clearance):  # pragma: no cover - compiled
+    """``Scene.blocked``'s capsule test: for each segment (L,) the first capsule it passes
+    within ``clearance`` of (``segments_distance - radius < clearance``), -1 where none."""
+    out = np.full(starts.shape[0], -1, dtype=np.intp)
+    for i in range(starts.shape[0]):
+        for q in range(qr.shape[0]):
+            d = _segments_distance(starts[i, 0], starts[i, 1], ends[i, 0], ends[i, 1],
+                                   qa[q, 0], qa[q, 1], qb[q, 0], qb[q, 1])
+            if d - qr[q] < clearance:
+                out[i] = q
+                break
+    return out
+
+
+@njit(cache=True)
+def _ray_circle(ox, oy, dx, dy, cx, cy, r):  # pragma: no cover - compiled
+    """``geometry.ray_circles`` of one ray and circle."""
+    relx = cx - ox
+    rely = cy - oy
+    along = relx * dx + rely * dy
+    across2 = (relx * relx + rely * rely) - along * along
+    disc = r * r - across2
+    root = math.sqrt(disc if disc > 0.0 else 0.0)
+    if relx * relx + rely * rely <= r * r:
+        return 0.0
+    t = along - root
+    if disc >= 0 and along + root >= 0 and t >= 0:
+        return t
+    return np.inf
+
+
+@njit(cache=True)
+def _ray_segment(ox, oy, dx, dy, ax, ay, bx, by):  # pragma: no cover - compiled
+    """``geometry.ray_segments`` of one ray and segment."""
+    vx = bx - ax
+    vy = by - ay
+    wx = ax - ox
+    wy = ay - oy
+    denom = dx * vy - dy * vx
+    if denom == 0:
+        return np.inf
+    t = (wx * vy - wy * vx) / denom
+    s = (wx * dy - wy * dx) / denom
+    return t if t >= 0 and s >= 0 and s <= 1 else np.inf
+
+
+@njit(cache=True)
+def _ray_capsule(ox, oy, dx, dy, ax, ay, bx, by, r):  # pragma: no cover - compiled
+    """``geometry.ray_capsules`` of one ray and capsule."""
+    e0 = _ray_circle(ox, oy, dx, dy, ax, ay, r)
+    e1 = _ray_circle(ox, oy, dx, dy, bx, by, r)
+    ends = e0 if e0 < e1 else e1
+    vx = bx - ax
+    vy = by - ay
+    length = math.sqrt(vx * vx + vy * vy)
+    sides = np.inf
+    if length > 0:
+        offx = (-vy / length) * r
+        offy = (vx / length) * r
+        s0 = _ray_segment(ox, oy, dx, dy, ax + offx, ay + offy, bx + offx, by + offy)
+        s1 = _ray_segment(ox, oy, dx, dy, ax - offx, ay - offy, bx - offx, by - offy)
+        sides = s0 if s0 < s1 else s1
+    if _closest(ox, oy, ax, ay, bx, by)[2] <= r:
+        return 0.0
+    return ends if ends < sides else sides
+
+
+@njit(cache=True)
+def raycast(origins, directions, box, has_box, qa, qb, qr, table, origin, shape,
+            has_shapes):  # pragma: no cover - compiled
+    """``Scene.raycast`` before its map cells and range cap: the distance (P, R) along each
+    ray ``directions`` (P, R, 2) from ``origins`` (P, 2) to the box's walls and the
+    capsules of each origin's index row (inf where none)."""
+    p, rays = directions.shape[0], directions.shape[1]
+    out = np.full((p, rays), np.inf)
+    for i in range(p):
+        ox = origins[i, 0]
+        oy = origins[i, 1]
+        row = _index_row(ox, oy, origin, shape) if has_shapes else 0
+        for k in range(rays):
+            dx = directions[i, k, 0]
+            dy = directions[i, k, 1]
+            best = np.inf
+            if has_box:
+                tx = ((box[2] - ox) / dx if dx > 0 else
+                      ((box[0] - ox) / dx if dx < 0 else np.inf))
+                ty = ((box[3] - oy) / dy if dy > 0 else
+                      ((box[1] - oy) / dy if dy < 0 else np.inf))
+                best = tx if tx < ty else ty
+                best = best if best > 0.0 else 0.0
+            if has_shapes:
+                hit = np.inf
+                for s in range(table.shape[1]):
+                    q = table[row, s]
+                    h = _ray_capsule(ox, oy, dx, dy, qa[q, 0], qa[q, 1], qb[q, 0], qb[q, 1],
+                                     qr[q])
+                    hit = h if h < hit else hit
+                best = best if best < hit else hit
+            out[i, k] = best
+    return out
+
+
+@njit(cache=True)
+def ray_circles_nearest(origins, directions, centres, radii):  # pragma: no cover - compiled
+    """``observations._ranges_along``' robot discs: the distance (F, R) along each ray to
+    the nearest of each follower's discs ``centres`` (F, K, 2) of ``radii`` (F, K)."""
+    f, rays = directions.shape[0], directions.shape[1]
+    out = np.empty((f, rays))
+    for i in range(f):
+        for k in range(rays):
+            hit = np.inf
+            for j in range(centres.shape[1]):
+                h = _ray_circle(origins[i, 0], origins[i, 1], directions[i, k, 0],
+                                directions[i, k, 1], centres[i, j, 0], centres[i, j, 1],
+                                radii[i, j])
+                hit = h if h < hit else hit
+            out[i, k] = hit
+    return out
+
+
+# ------------------------------------------------------------------ the safety filter
+_FREE = 1e9
+_TOLERANCE = 1e-9
+
+
+@njit(cache=True)
+def _static_rows(surfaces, valid, i, radius, alpha, margin, a, b, hard):  # pragma: no cover
+    """``barrier_constraints``' rows of follower ``i``'s surface points (the first M)."""
+    for s in range(surfaces.shape[1]):
+        sx = surfaces[i, s, 0]
+        sy = surfaces[i, s, 1]
+        d = math.sqrt(sx * sx + sy * sy)
+        if valid[i, s] and d > 0.0:
+            a[s, 0] = sx / d
+            a[s, 1] = sy / d
+            b[s] = alpha * (d - radius - margin)
+        else:
+            a[s, 0] = 0.0
+            a[s, 1] = 0.0
+            b[s] = _FREE
+        hard[s] = True
+
+
+@njit(cache=True)
+def _robots_in_reach(positions, r, reach, k, order, dists):  # pragma: no cover - compiled
+    """The robots within ``reach`` of robot ``r`` into ``order``/``dists``, nearest first:
+    their count, or -1 where the KD-tree would decide (a robot exactly on ``r`` or at
+    ``reach`` within 1e-9, two of the ``k + 1`` nearest exactly equally far)."""
+    n = positions.shape[0]
+    px = positions[r, 0]
+    py = positions[r, 1]
+    count = 0
+    for j in range(n):
+        if j == r:
+            continue
+        dx = px - positions[j, 0]
+        dy = py - positions[j, 1]
+        d = math.sqrt(dx * dx + dy * dy)
+        if not d > 0.0 or abs(d - reach) <= 1e-9 * reach:
+            return -1
+        if d >= reach:
+            continue
+        q = count
+        while q > 0 and dists[q - 1] > d:
+            dists[q] = dists[q - 1]
+            order[q] = order[q - 1]
+            q -= 1
+        dists[q] = d
+        order[q] = j
+        count += 1
+    for q in range(min(count - 1, k)):
+        if dists[q] == dists[q + 1]:
+            return -1
+    return count
+
+
+@njit(cache=True)
+def _robot_rows(positions, velocities, lead, r, count, order, dists, radius, alpha, margin,
+                m, a, b, hard):  # pragma: no cover - compiled
+    """``barrier_constraints``' rows of robot ``r``'s nearest robots (after the first M)."""
+    px = positions[r, 0]
+    py = positions[r, 1]
+    for s in range(b.shape[0] - m):
+        row = m + s
+        if s >= count:
+            a[row, 0] = 0.0
+            a[row, 1] = 0.0
+            b[row] = _FREE
+            hard[row] = False
+            continue
+        j = order[s]
+        d = dists[s]
+        ax = (positions[j, 0] - px) / d
+        ay = (positions[j, 1] - py) / d
+        a[row, 0] = ax
+        a[row, 1] = ay
+        gap = alpha * (d - 2.0 * radius - margin)
+        if j == 0:
+            b[row] = gap + (lead[0] * ax + lead[1] * ay)
+        else:
+            own = velocities[r, 0] * ax + velocities[r, 1] * ay
+            theirs = velocities[j, 0] * ax + velocities[j, 1] * ay
+            b[row] = 0.5 * gap + (own if own < theirs else theirs)
+        hard[row] = j == 0
+
+
+@njit(cache=True)
+def safety_filter(commands, positions, velocities, lead, radius, alpha, margin, reach, k,
+                  surfaces, valid):  # pragma: no cover - compiled
+    """``world.safety``'s barrier constraints and ``nearest_allowed`` for every follower:
+    ``(status, out (F, 2))``, status 1 where the numpy reference must run instead (two of a
+    follower's nearest robots exactly equally far, one exactly on it or at ``reach`` within
+    1e-9: the KD-tree's order and bound decide those; or a NaN)."""
+    n = positions.shape[0]
+    m = surfaces.shape[1]
+    rows = m + k
+    out = commands.copy()
+    a = np.zeros((rows, 2))
+    b = np.empty(rows)
+    hard = np.zeros(rows, dtype=np.bool_)
+    excess = np.empty(rows)
+    order = np.empty(n, dtype=np.intp)
+    dists = np.empty(n)
+    for i in range(n - 1):
+        _static_rows(surfaces, valid, i, radius, alpha, margin, a, b, hard)
+        count = _robots_in_reach(positions, i + 1, reach, k, order, dists) if k else 0
+        if count < 0:
+            return 1, out
+        _robot_rows(positions, velocities, lead, i + 1, count, order, dists, radius, alpha,
+                    margin, m, a, b, hard)
+        cx = out[i, 0]
+        cy = out[i, 1]
+        active = False
+        for q in range(rows):
+            excess[q] = a[q, 0] * cx + a[q, 1] * cy - b[q]
+            if excess[q] != excess[q]:
+                return 1, out
+            active = active or excess[q] > _TOLERANCE
+        if active:
+            status, vx, vy = _solve(cx, cy, a, b, hard, excess)
+            if status:
+                return 1, out
+            out[i, 0] = vx
+            out[i, 1] = vy
+    return 0, out
+
+
+@njit(cache=True)
+def _solve_candidates(cx, cy, a, b, excess):  # pragma: no cover - compiled
+    """``safety._solve``'s candidates (C, 2): the command, its projections onto each line,
+    the lines' crossings (i < j, row by row); which are real; which rows are used."""
+    rows = b.shape[0]
+    total = 1 + rows + rows * (rows - 1) // 2
+    cand = np.empty((total, 2))
+    real = np.empty(total, dtype=np.bool_)
+    used = np.empty(rows, dtype=np.bool_)
+    cand[0, 0] = cx
+    cand[0, 1] = cy
+    real[0] = True
+    for q in range(rows):
+        used[q] = a[q, 0] != 0.0 or a[q, 1] != 0.0
+        cand[1 + q, 0] = cx - excess[q] * a[q, 0]
+        cand[1 + q, 1] = cy - excess[q] * a[q, 1]
+        real[1 + q] = used[q]
+    c = 1 + rows
+    for p in range(rows):
+        for q in range(p + 1, rows):
+            det = a[p, 0] * a[q, 1] - a[p, 1] * a[q, 0]
+            crossing = abs(det) > 1e-9
+            safe = det if crossing else 1.0
+            cand[c, 0] = (b[p] * a[q, 1] - b[q] * a[p, 1]) / safe
+            cand[c, 1] = (a[p, 0] * b[q] - a[q, 0] * b[p]) / safe
+            real[c] = crossing and used[p] and used[q]
+            c += 1
+    return cand, real, used
+
+
+@njit(cache=True)
+def _violations(a, b, hard, used, x, y):  # pragma: no cover - compiled
+    """A candidate's worst violation of all used rows, of the hard ones, of the soft ones
+    (-inf where none; NaN if one is NaN)."""
+    worst = -np.inf
+    worst_hard = -np.inf
+    worst_soft = -np.inf
+    for q in range(b.shape[0]):
+        if not used[q]:
+            continue
+        v = a[q, 0] * x + a[q, 1] * y - b[q]
+        if v != v:
+            return v, v, v
+        worst = v if v > worst else worst
+        if hard[q]:
+            worst_hard = v if v > worst_hard else worst_hard
+        else:
+            worst_soft = v if v > worst_soft else worst_soft
+    return worst, worst_hard, worst_soft
+
+
+@njit(cache=True)
+def _solve(cx, cy, a, b, hard, excess):  # pragma: no cover - compiled
+    """``safety._solve`` of one follower: (status, vx, vy), status 1 on a NaN. Each pick is
+    numpy's argmin: the first of equal keys."""
+    cand, real, used = _solve_candidates(cx, cy, a, b, excess)
+    best, best_d, soft, soft_v, least, least_v = 0, np.inf, 0, np.inf, 0, np.inf
+    any_feasible = any_keeps = False
+    for c in range(cand.shape[0]):
+        worst, worst_hard, worst_soft = _violations(a, b, hard, used, cand[c, 0], cand[c, 1])
+        if worst != worst:
+            return 1, cx, cy
+        if not real[c]:
+            worst = worst_hard = np.inf
+        dx = cand[c, 0] - cx
+        dy = cand[c, 1] - cy
+        feasible = worst <= _TOLERANCE
+        any_feasible = any_feasible or feasible
+        key = (dx * dx + dy * dy if real[c] else np.inf) if feasible else np.inf
+        if key < best_d:
+            best, best_d = c, key
+        keeps = worst_hard <= _TOLERANCE
+        any_keeps = any_keeps or keeps
+        key = worst_soft if keeps else np.inf
+        if key < soft_v:
+            soft, soft_v = c, key
+        if worst < least_v:
+            least, least_v = c, worst
+    pick = best if any_feasible else (soft if any_keeps else least)
+    return 0, cand[pick, 0], cand[pick, 1]
+
+
+# ------------------------------------------------------------------ exact MLP products
+# boids_env.policies.exact's elementwise parts in loops: the integer slices before the
+# products (which stay numpy's BLAS calls: exact in any order, see that module) and the sums,
+# scalings, bias and tanh after them, the same + - * / in the same order.
+_SLICE = 65536.0
+_PADE_1680 = 1.0 / 1680.0
+_PADE_3_28 = 3.0 / 28.0
+_PADE_84 = 1.0 / 84.0
+_HALVINGS = np.ldexp(1.0, -np.arange(65))
+"""2^-k for k = 0..64: tanh's scalings (exact products)."""
+
+
+@njit(cache=True)
+def exact_slices(x):  # pragma: no cover - compiled
+    """``exact.ExactLinear``'s integer slices of ``x`` (F, K) (float32 or float64, finite):
+    ``(slices (2F, K), exponents (F,))``, the high slices' rows then the low ones'."""
+    f, inputs = x.shape
+    slices = np.empty((2 * f, inputs))
+    exponents = np.empty(f, dtype=np.int64)
+    for i in range(f):
+        biggest = 0.0
+        for j in range(inputs):
+            v = abs(np.float64(x[i, j]))
+            biggest = v if v > biggest else biggest
+        e = math.frexp(biggest)[1]
+        exponents[i] = e
+        up = _power_of_two(16 - e)  # x * 2^k, correctly rounded: ldexp's bits
+        for j in range(inputs):
+            v = np.float64(x[i, j])
+            scaled = v * up if up > 0.0 else math.ldexp(v, 16 - e)
+            h = np.rint(scaled)
+            slices[i, j] = h
+            slices[f + i, j] = np.rint((scaled - h) * _SLICE)
+    return slices, exponents
+
+
+@njit(cache=True)
+def exact_combine(both, exponents, column_scale, bias, activation, inv_ln2, ln2,
+                  one):  # pragma: no cover - compiled
+    """``exact.ExactLinear``'s result from the slices' products ``both`` (2F, H): the two
+    slices added, scaled back, the bias added; then the activation (0 none, 1 tanh, 2
+    ReLU)."""
+    f = exponents.shape[0]
+    outputs = both.shape[1]
+    out = np.empty((f, outputs))
+    for i in range(f):
+        e = exponents[i]
+        up = _power_of_two(e)
+        for c in range(outputs):
+            total = both[i, c] + both[f + i, c] * (1.0 / _SLICE)
+            total = total * up if up > 0.0 else math.ldexp(total, e)
+            out[i, c] = total * column_scale[0, c] + bias[c]
+    if activation == 1:
+        _exact_tanh(out, inv_ln2, ln2, one)
+    elif activation == 2:
+        for i in range(f):
+            for c in range(outputs):
+                out[i, c] = out[i, c] if out[i, c] > 0.0 else 0.0
+    return out
+
+
+@njit(cache=True)
+def _power_of_two(k):  # pragma: no cover - compiled
+    """2^k where it is a normal float64 (then ``x * 2^k`` is ``ldexp(x, k)``: both the
+    correctly rounded x·2^k), else 0."""
+    return math.ldexp(1.0, k) if -1022 <= k <= 1023 else 0.0
+
+
+@njit(cache=True)
+def _exact_tanh(y, inv_ln2, ln2, one):  # pragma: no cover - compiled
+    """``exact.tanh`` in place."""
+    f, h = y.shape
+    for i in range(f):
+        for c in range(h):
+            v = y[i, c]
+            t = abs(v)
+            t = t if t < one else one
+            z = t * -2.0
+            kz = z * inv_ln2
+            k = np.rint(kz if kz >= -64.0 else -64.0)
+            r = z - k * ln2
+            r2 = r * r
+            even = (r2 * _PADE_1680 + _PADE_3_28) * r2 + 1.0
+            odd = (r2 * _PADE_84 + 0.5) * r
+            n = int(k)
+            scaled = ((even + odd) * _HALVINGS[-n] if -64 <= n <= 0
+                      else math.ldexp(even + odd, n))
+            den = even - odd
+            y[i, c] = math.copysign((den - scaled) / (den + scaled), v)
+
+
+@njit(cache=True)
+def clip_actions(y, low, high):  # pragma: no cover - compiled
+    """``MLPActor.act_batch``'s last step: ``np.clip(y.reshape(-1, 2), low, high)`` as
+    float32 (the clip keeps ``v`` unless it is out of range, as numpy's does)."""
+    flat = y.reshape(-1, 2)
+    out = np.empty(flat.shape, dtype=np.float32)
+    for i in range(flat.shape[0]):
+        for c in range(2):
+            v = flat[i, c]
+            lo = np.float64(low[c])
+            hi = np.float64(high[c])
+            v = lo if v < lo else v
+            v = hi if v > hi else v
+            out[i, c] = np.float32(v)
+    return out

@@ -4,7 +4,9 @@ A step of 19 robots is about a hundred numpy calls on 18-row arrays, each costin
 microsecond of call overhead whatever it computes. The neighbour search, the observations'
 study blocks, the violation flags with their reward terms, each follower's nearest robot for
 the safety flags and the speed limit each run as one numba loop instead
-(:mod:`boids_env._compiled`), and round exactly as the numpy code they replace:
+(:mod:`boids_env._compiled`), and so do the scene's queries (nearest wall points, wall
+flags, sight lines, clearance, ray casts), the safety filter, route sensing's sight lines and
+a learned actor's elementwise work; each rounds exactly as the numpy code it replaces:
 trajectories, rewards and digests stay the same bits (``tests/env/test_kernels.py`` compares
 whole episodes of both paths).
 
@@ -28,8 +30,9 @@ from collections.abc import Iterator
 from types import ModuleType
 
 LOAD_AFTER = 10_000
-"""Calls to :func:`compiled` after which a process loads the kernels (a step makes 3 to 5):
-about the steps whose savings repay the load, measured at 13 to 19 robots."""
+"""Calls to :func:`compiled` after which a process loads the kernels (a step of the study's
+case makes 4, one in a scene with the safety filter and a learned actor about 12): about the
+steps whose savings repay the load, measured at 13 to 19 robots."""
 
 _module: ModuleType | None = None
 _loaded = False

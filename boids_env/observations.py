@@ -619,9 +619,19 @@ def _ranges_along(positions: FloatArray, dirs: FloatArray, sensors: Sensors,
         radii = np.full(1, sensors.robot_radius)
         if sensors.leader_radius is not None:  # the person: a wider disc than a robot's
             radii = np.where(index == 0, sensors.leader_radius, sensors.robot_radius)[:, None]
-        hit = geo.ray_circles(origins[:, None, None, :], dirs[:, :, None, :],
-                              centres[:, None, :, :], radii)
-        ranges = np.minimum(ranges, hit.min(axis=2))
+        compiled = kernels.compiled()
+        if compiled is not None and np.isfinite(dirs).all():  # the same ranges in one loop
+            hit = compiled.ray_circles_nearest(
+                np.ascontiguousarray(origins), np.ascontiguousarray(dirs),
+                np.ascontiguousarray(centres),
+                np.ascontiguousarray(np.broadcast_to(radii.reshape(-1, index.shape[1])
+                                                     if radii.ndim > 1 else radii,
+                                                     index.shape), dtype=np.float64))
+            ranges = np.minimum(ranges, hit)
+        else:
+            hit = geo.ray_circles(origins[:, None, None, :], dirs[:, :, None, :],
+                                  centres[:, None, :, :], radii)
+            ranges = np.minimum(ranges, hit.min(axis=2))
     if crowd is not None and len(crowd.positions):
         hit = geo.ray_circles(origins[:, None, None, :], dirs[:, :, None, :],
                               crowd.positions[None, None, :, :],

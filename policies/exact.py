@@ -78,6 +78,16 @@ class ExactLinear:
         self.bias = np.asarray(bias, dtype=np.float64)
         self.rows_per_call = max(1, SINGLE_THREAD_PRODUCT // w.size)
 
+    def products(self, slices: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """The integer slices' rows (R, K) times the weight integers: one product for both
+        slices (rows stacked), exact in any summation order, since every partial sum is an
+        integer below 2^53; at most :data:`SINGLE_THREAD_PRODUCT` multiply-adds a call."""
+        both = np.empty((len(slices), self.q.shape[1]))
+        for start in range(0, len(slices), self.rows_per_call):
+            end = start + self.rows_per_call
+            np.matmul(slices[start:end], self.q, out=both[start:end])
+        return both
+
     def __call__(self, x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """``x @ w + b`` for ``x`` (F, K) float64."""
         n = len(x)
@@ -88,21 +98,16 @@ class ExactLinear:
         # scaled - high is exact (a float minus its nearest integer); |low| <= 2^15
         np.subtract(scaled, high, out=scaled)
         np.rint(np.multiply(scaled, _SLICE, out=scaled), out=slices[n:])
-        # one product for both slices (rows stacked): exact in any summation order, since
-        # every partial sum is an integer below 2^53
-        both = np.empty((2 * n, self.q.shape[1]))
-        for start in range(0, 2 * n, self.rows_per_call):
-            end = start + self.rows_per_call
-            np.matmul(slices[start:end], self.q, out=both[start:end])
+        both = self.products(slices)
         total = np.add(both[:n], np.multiply(both[n:], 1.0 / _SLICE, out=both[n:]))
         # the row's and the column's powers of two (exact), then the bias (one rounding)
         np.multiply(np.ldexp(total, rows, out=total), self.column_scale, out=total)
         return np.add(total, self.bias, out=total)
 
 
-_INV_LN2 = 1.0 / math.log(2.0)
-_LN2 = math.log(2.0)
-_TANH_ONE = 20.0
+INV_LN2 = 1.0 / math.log(2.0)
+LN2 = math.log(2.0)
+TANH_ONE = 20.0
 """|y| from which tanh(y) rounds to ±1 in float64 (1 - tanh(20) = 8e-18 < 2^-53)."""
 
 
@@ -115,12 +120,12 @@ def tanh(y: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     approximant ``N / D`` (relative error below 3e-12); then ``tanh|y| = (1 - e) / (1 + e)
     = (D - 2^k N) / (D + 2^k N)``, given the sign of ``y``.
     """
-    t = np.minimum(np.abs(y), _TANH_ONE)
+    t = np.minimum(np.abs(y), TANH_ONE)
     z = t * -2.0  # z in [-40, 0]
     # z = k ln2 + r; fmax turns a NaN's k into a number (a NaN y still gives NaN, through r)
     # so the cast to int below never sees one
-    k = np.rint(np.fmax(z * _INV_LN2, -64.0))
-    r = z - k * _LN2
+    k = np.rint(np.fmax(z * INV_LN2, -64.0))
+    r = z - k * LN2
     r2 = r * r
     even = (r2 * (1.0 / 1680.0) + 3.0 / 28.0) * r2 + 1.0  # the Padé polynomials' even part
     odd = (r2 * (1.0 / 84.0) + 0.5) * r  # and odd part: N = even + odd, D = even - odd

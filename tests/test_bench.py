@@ -88,3 +88,13 @@ def test_compare_refuses_bad_counts():
 
     with pytest.raises(SystemExit):
         main(["python", "--rounds", "0"])
+
+
+def test_lab_episode_costs_are_rounds_of_both_policies_and_their_median_quotient():
+    from boids_env.bench.training import lab_episode_costs
+
+    costs = lab_episode_costs(rounds=3, max_cycles=15)
+    rows = costs["rounds"]
+    assert len(rows) == 3 and all(len(r) == 2 and min(r) > 0 for r in rows)
+    quotients = sorted(b / a for a, b in rows)
+    assert costs["learned_scenes_over_reynolds"] == quotients[1]

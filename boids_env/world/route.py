@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from boids_env import kernels
 from boids_env.world.scene import Scene
 
 if TYPE_CHECKING:  # scipy.sparse is imported when a grid is first built (1 s on a busy machine)
@@ -188,10 +189,18 @@ def _in_sight_ahead(grid: RouteGrid, field: RouteField, node: npt.NDArray[np.int
     through free cells (every earlier one seen too), so its aim never cuts a door's jamb;
     the next node where it sees none."""
     steps = max(1, round(LOOKAHEAD / grid.cell))
+    t = np.linspace(0.0, 1.0, 2 * steps + 1)
+    compiled = kernels.compiled()
+    if compiled is not None and (node >= 0).all() and np.isfinite(points).all():
+        # the same nodes in one loop (boids_env.kernels)
+        return compiled.in_sight_ahead(np.ascontiguousarray(points, dtype=np.float64), node,
+                                       field.next, grid.centres, grid.free,
+                                       float(grid.origin[0]), float(grid.origin[1]),
+                                       float(grid.cell), t, steps)
+    t = t[None, :, None]
     cur = field.next[node]
     best = cur.astype(np.intp)
     alive = np.ones(len(node), dtype=bool)
-    t = np.linspace(0.0, 1.0, 2 * steps + 1)[None, :, None]
     h, w = grid.free.shape
     flat = grid.free.ravel()
     for _ in range(steps):

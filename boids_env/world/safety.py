@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
 
+from boids_env import kernels
 from boids_env.checks import flag as _flag
 from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
@@ -55,6 +56,10 @@ _FREE = 1e9
 """The bound of an unused constraint (always satisfied)."""
 _TOLERANCE = 1e-9
 """A candidate satisfies a constraint within this (m/s)."""
+COMPILED_BELOW = 96
+"""Below this group size the compiled filter (:mod:`boids_env.kernels`) finds each follower's
+robots by all pairs and runs the whole filter in one loop; from it on, the numpy code's
+KD-tree."""
 
 
 @dataclass(frozen=True)
@@ -229,6 +234,19 @@ def filter_commands(commands: FloatArray, positions: FloatArray, velocities: Flo
     ``max_speed``."""
     surfaces, valid = scene.nearest_points(positions[1:], STATIC_POINTS,
                                            config.safety_range)
+    compiled = kernels.compiled()
+    if compiled is not None and len(positions) < COMPILED_BELOW:
+        # the same bits in one loop; it declines (status 1) where the KD-tree's order on
+        # exact ties or its bound decide, and the numpy code below runs
+        status, out = compiled.safety_filter(
+            np.ascontiguousarray(commands, dtype=np.float64),
+            np.ascontiguousarray(positions, dtype=np.float64),
+            np.ascontiguousarray(velocities, dtype=np.float64),
+            np.ascontiguousarray(leader_velocity, dtype=np.float64), float(radius),
+            config.safety_gain, config.safety_margin, config.safety_range,
+            config.safety_neighbours, surfaces, valid)
+        if status == 0:
+            return clip_speed(out, max_speed)
     a, b, hard = barrier_constraints(positions, velocities,
                                      np.asarray(leader_velocity, dtype=float), radius, config,
                                      surfaces, valid)

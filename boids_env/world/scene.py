@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env import kernels
 from boids_env.untrusted import excerpt
 from boids_env.world import geometry as geo
 
@@ -73,8 +74,13 @@ class OccupancyGrid:
     def occupied(self, points: FloatArray) -> BoolArray:
         """Whether each point (P, 2) lies in an occupied or unknown cell, or off the map."""
         x0, y0, yaw = self.origin
-        rel = points - np.array([x0, y0])
         c, s = math.cos(yaw), math.sin(yaw)
+        compiled = kernels.compiled()
+        if compiled is not None and points.ndim == 2 and np.isfinite(points).all():
+            return compiled.occupied(np.ascontiguousarray(points, dtype=np.float64),
+                                     self.cells, float(self.resolution), float(x0), float(y0),
+                                     c, s)  # the same cells in one loop (boids_env.kernels)
+        rel = points - np.array([x0, y0])
         local = np.stack([rel[:, 0] * c + rel[:, 1] * s, -rel[:, 0] * s + rel[:, 1] * c], 1)
         col = np.floor(local[:, 0] / self.resolution).astype(np.int64)
         row = np.floor(local[:, 1] / self.resolution).astype(np.int64)
@@ -210,6 +216,18 @@ class Scene:
         cy = np.clip(cell[:, 1], 0, shape[1] - 1)
         return table[cx * shape[1] + cy]
 
+    def _kernel_index(self, reach: float) -> tuple[FloatArray, npt.NDArray[np.intp],
+                                                   npt.NDArray[np.intp]]:
+        """The index for ``reach`` as the compiled queries take it: ``(origin (x, y, cell),
+        shape (2,), table)``."""
+        key = ("kernel index", float(reach))
+        if key not in self._cache:
+            self._candidates(np.zeros((0, 2)), reach)  # builds the index
+            origin, shape, table = self._cache[("index", float(reach))]
+            self._cache[key] = (np.array([origin[0], origin[1], INDEX_CELL]),
+                                np.array(shape, dtype=np.intp), np.ascontiguousarray(table))
+        return self._cache[key]
+
     def _query_arrays(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The query capsules plus the dummy one at the end."""
         if "padded" not in self._cache:
@@ -256,6 +274,11 @@ class Scene:
         """Distance (P,) from each point to the nearest capsule or polygon edge surface
         (values beyond ``reach`` may be any number above it)."""
         qa, qb, qr = self._query_arrays()
+        compiled = kernels.compiled()
+        if compiled is not None and np.isfinite(points).all():  # the same bits in one loop
+            origin, shape, table = self._kernel_index(reach)
+            return compiled.shape_clearance(np.ascontiguousarray(points), qa, qb, qr, table,
+                                            origin, shape)
         idx = self._candidates(points, reach)
         _, d = geo.closest_on_segments(points[:, None, :], qa[idx], qb[idx])
         return np.min(d - qr[idx], axis=1, initial=np.inf)
@@ -269,7 +292,13 @@ class Scene:
         best = np.full(len(flat), np.inf)
         if self.box is not None:
             best = np.minimum(best, self._box_gaps(flat).min(axis=1))
-        if len(self._qr):
+        compiled = kernels.compiled()
+        if len(self._qr) and compiled is not None and np.isfinite(flat).all():
+            # the same minimum in one loop (boids_env.kernels)
+            best = np.minimum(best, compiled.capsule_clearance(
+                np.ascontiguousarray(flat), np.ascontiguousarray(self._qa),
+                np.ascontiguousarray(self._qb), np.ascontiguousarray(self._qr)))
+        elif len(self._qr):
             qa, qb, qr = self._qa, self._qb, self._qr
             for start in range(0, len(qr), 256):  # exact for any distance: all shapes
                 sl = slice(start, start + 256)
@@ -306,6 +335,18 @@ class Scene:
             point (m, world frame), zeros in empty slots.
         """
         pts = np.asarray(points, dtype=float)
+        compiled = kernels.compiled()
+        shapes = len(self._qr) > 0
+        if (compiled is not None and (shapes or self.box is not None) and pts.ndim == 2
+                and np.isfinite(pts).all()):  # the same bits in one loop (boids_env.kernels)
+            qa, qb, qr = self._query_arrays()
+            origin, shape, table = (self._kernel_index(reach) if shapes
+                                    else (np.zeros(3), np.ones(2, dtype=np.intp),
+                                          np.zeros((1, 1), dtype=np.intp)))
+            box = np.array(self.box if self.box is not None else (0.0, 0.0, 0.0, 0.0), float)
+            return compiled.nearest_points(np.ascontiguousarray(pts), int(slots),
+                                           float(reach), box, self.box is not None, qa, qb,
+                                           qr, table, origin, shape, shapes, SECTOR_COS)
         cand_off, cand_d = self._surface_candidates(pts, reach)
         p = len(pts)
         offsets = np.zeros((p, slots, 2))
@@ -358,6 +399,23 @@ class Scene:
             directions: (P, R, 2) unit ray directions.
             max_range: the sensor's range (m); no hit reads ``max_range``.
         """
+        compiled = kernels.compiled()
+        shapes = len(self._qr) > 0
+        if (compiled is not None and directions.ndim == 3 and len(directions) == len(origins)
+                and np.isfinite(origins).all() and np.isfinite(directions).all()):
+            # the same ranges in one loop (boids_env.kernels)
+            qa, qb, qr = self._query_arrays()
+            origin, shape, table = (self._kernel_index(max_range) if shapes
+                                    else (np.zeros(3), np.ones(2, dtype=np.intp),
+                                          np.zeros((1, 1), dtype=np.intp)))
+            box = np.array(self.box if self.box is not None else (0.0, 0.0, 0.0, 0.0), float)
+            best = compiled.raycast(np.ascontiguousarray(origins, dtype=np.float64),
+                                    np.ascontiguousarray(directions, dtype=np.float64), box,
+                                    self.box is not None, qa, qb, qr, table, origin, shape,
+                                    shapes)
+            if self.grid is not None:
+                best = np.where(self.grid.occupied(origins)[:, None], 0.0, best)
+            return np.minimum(best, max_range)
         best = np.full(directions.shape[:2], np.inf)
         o = origins[:, None, :]
         if self.box is not None:
@@ -389,16 +447,7 @@ class Scene:
         cannot cross occupied cells without crossing a contour, so without it only the
         contours are tested)."""
         starts, ends = np.atleast_2d(starts).astype(float), np.atleast_2d(ends).astype(float)
-        out = np.zeros(len(starts), dtype=bool)
-        which = np.full(len(starts), -1, dtype=np.intp)
-        chunk = max(1, 1_000_000 // max(len(self._qr), 1))  # bounds the (L, S) temporaries
-        for lo in range(0, len(starts) if len(self._qr) else 0, chunk):
-            sl = slice(lo, lo + chunk)
-            d = geo.segments_distance(starts[sl, None], ends[sl, None], self._qa[None],
-                                      self._qb[None]) - self._qr[None]
-            hit = d < clearance
-            out[sl] = hit.any(axis=1)
-            which[sl] = np.where(out[sl], self._owner[np.argmax(hit, axis=1)], -1)
+        out, which = self._capsules_blocked(starts, ends, clearance)
         for k, poly in enumerate(self.polygons):  # a segment wholly inside a block
             inside = geo.points_in_polygon(starts, poly) | geo.points_in_polygon(ends, poly)
             fresh = inside & ~out
@@ -410,6 +459,33 @@ class Scene:
                 t = np.linspace(0.0, 1.0, n)[:, None]
                 if self.grid.occupied(starts[i] + t * (ends[i] - starts[i])).any():
                     out[i] = True
+        return out, which
+
+    def _capsules_blocked(self, starts: FloatArray, ends: FloatArray, clearance: float
+                          ) -> tuple[BoolArray, npt.NDArray[np.intp]]:
+        """:meth:`blocked`'s test of the capsules and polygon edges: whether each segment
+        passes within ``clearance`` of one, and the first one's shape (−1 where none)."""
+        if not len(self._qr):
+            return np.zeros(len(starts), dtype=bool), np.full(len(starts), -1, dtype=np.intp)
+        compiled = kernels.compiled()
+        if (compiled is not None and starts.shape == ends.shape and np.isfinite(starts).all()
+                and np.isfinite(ends).all()):  # the same distances and first hits in one loop
+            first = compiled.segments_blocked(
+                np.ascontiguousarray(starts), np.ascontiguousarray(ends),
+                np.ascontiguousarray(self._qa), np.ascontiguousarray(self._qb),
+                np.ascontiguousarray(self._qr), float(clearance))
+            hit = first >= 0
+            return hit, np.where(hit, self._owner[np.maximum(first, 0)], -1)
+        out = np.zeros(len(starts), dtype=bool)
+        which = np.full(len(starts), -1, dtype=np.intp)
+        chunk = max(1, 1_000_000 // len(self._qr))  # bounds the (L, S) temporaries
+        for lo in range(0, len(starts), chunk):
+            sl = slice(lo, lo + chunk)
+            d = geo.segments_distance(starts[sl, None], ends[sl, None], self._qa[None],
+                                      self._qb[None]) - self._qr[None]
+            hit = d < clearance
+            out[sl] = hit.any(axis=1)
+            which[sl] = np.where(out[sl], self._owner[np.argmax(hit, axis=1)], -1)
         return out, which
 
     def occupancy(self, resolution: float = 0.05) -> OccupancyGrid:
