@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from boids_env.config import EnvConfig
 
 BUILTIN = ("reynolds", "random", "learned", "learned-study", "learned-person",
-           "learned-scenes")
+           "learned-scenes", "learned-buildings")
 LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_safe.zip"
 """The shipped PPO follower policy (recipes ``ppo_safe`` then ``ppo_safe_stage2``: leader frame,
 actions relative to the leader's velocity, safe reward with the cohesion gap, varied paths,
@@ -37,8 +37,15 @@ SCENES_MODEL = Path(__file__).parent / "models" / "ppo_scenes.zip"
 then stages 6 and 7, each with the checkpoint ``boids select`` picked): walls near the path,
 doorways, corridors, pillars, up to 61 robots, leaders who stand still, with the safety filter
 in the loop; its env fields switch the filter on."""
+BUILDINGS_MODEL = Path(__file__).parent / "models" / "ppo_buildings.zip"
+"""The shipped followers for buildings (recipes ``ppo_buildings`` and its stage 2:
+``learned-scenes`` widened by route sensing and trained on generated floor plans, the open
+arena, doorway, corridor and pillars): a follower that does not see the leader reads it
+along its route (``route_leader``); its env fields switch route sensing and the safety
+filter on."""
 MODELS = {"learned": LEARNED_MODEL, "learned-study": STUDY_MODEL,
-          "learned-person": PERSON_MODEL, "learned-scenes": SCENES_MODEL}
+          "learned-person": PERSON_MODEL, "learned-scenes": SCENES_MODEL,
+          "learned-buildings": BUILDINGS_MODEL}
 NOT_SUGGESTED = ("learned-study",)
 """Shipped models never named as the one that fits an env (not made for robots)."""
 

@@ -118,15 +118,31 @@ def test_maps_shapes_files_and_floor_plans_have_routes(spec):
     assert (length >= straight - 0.15).all()
 
 
-def _leader_blocks(route_leader: bool, positions: np.ndarray) -> np.ndarray:
-    """The leader-position block of every follower in the ``doorway`` scene (world frame)."""
+def _leader_blocks(route_leader: bool, positions: np.ndarray, velocities=None,
+                   block: str = "leader_position") -> np.ndarray:
+    """A leader block of every follower in the ``doorway`` scene (world frame)."""
     from boids_env.observations import Observer
 
     config = EnvConfig.from_kwargs(scene="doorway", robots=len(positions), route_sensing=True,
                                    route_leader=route_leader)
     observer = Observer(config)
-    obs = observer(positions, np.zeros_like(positions))
-    return obs[:, observer.layout.leader_position].astype(float)
+    velocities = np.zeros_like(positions) if velocities is None else velocities
+    obs = observer(positions, velocities)
+    return obs[:, getattr(observer.layout, block)].astype(float)
+
+
+def test_route_leader_shows_the_leaders_motion_along_the_route():
+    # the leader drives east, away from the wall; the follower west of it, south of the door,
+    # sees its speed along its own way (towards the door); the one in sight sees it as is
+    positions = np.array([[1.0, -2.0], [-1.0, -2.0], [2.0, -1.0]])
+    velocities = np.array([[0.4, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    plain = _leader_blocks(False, positions, velocities, "leader_velocity")
+    routed = _leader_blocks(True, positions, velocities, "leader_velocity")
+    np.testing.assert_allclose(plain, [[0.4, 0.0], [0.4, 0.0]], atol=1e-7)  # float32
+    np.testing.assert_array_equal(routed[1], plain[1])
+    assert abs(np.linalg.norm(routed[0]) - 0.4) < 1e-6, routed[0]
+    to_door = np.array([1.0, 2.0]) / np.sqrt(5.0)  # from (-1, -2) to the door at (0, 0)
+    assert routed[0] @ to_door / 0.4 > 0.9, routed[0]
 
 
 def test_route_leader_shows_the_leader_through_the_door():
