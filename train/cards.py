@@ -54,6 +54,10 @@ _SCENES_TABLE = (f"{PAGE}, 'Learned followers for a lab: learned-scenes', Result
 _PERSON_TABLE = (f"{PAGE}, 'A learned policy for following a person: learned-person', its "
                  f"table (boids eval --suite person_learned, 13 robots, seeds 0-4, means)")
 
+_BUILDINGS_TABLE = ("docs/how-to/buildings.md, 'The learned follower: learned-buildings' "
+                    "(boids eval --suite buildings, 13 robots, seeds 0-4, means; lost: "
+                    "followers > 3 m from the leader at the end, summed)")
+
 SHIPPED: dict[str, dict[str, Any]] = {
     "learned": {
         "summary": "the open floor: the study's arena, any path, 7-49 robots (not walls: "
@@ -116,6 +120,21 @@ SHIPPED: dict[str, dict[str, Any]] = {
             ("leader 0.25", _f(1.310, 0.0, 0.0, farthest=1.56)),
             ("standing 30 s", _f(3.365, 0.0, 0.0, farthest=2.02, parked_speed=0.049)),
             ("61 robots", _f(14.514, 0.0029, 0.0, farthest=2.04))]),
+    },
+    "learned-buildings": {
+        "summary": "buildings: generated floor plans, rooms, doors, corridors, shelves and "
+                   "maps, leaders who stand in a doorway, with route sensing and the safety "
+                   "filter (on open floor its robots crowd closer than learned-scenes')",
+        "recipe": "ppo_buildings + ppo_buildings_stage2 (seed 0)",
+        "validated_scenes": ("lab", "map"),
+        "validation": _cases("buildings", _BUILDINGS_TABLE, [
+            ("held-out plans 1000-1019 (100 episodes)", _f(6.46, 0.0018, 0.0, lost=0)),
+            ("unseen: lab", _f(4.70, 0.0, 0.0, lost=0)),
+            ("doorway stops, plans 1000-1002", _f(7.36, 0.0018, 0.0, lost=0)),
+            ("noise 0.05, plans 1000-1002", _f(6.87, 0.0023, 0.0, lost=0)),
+            ("ROS realism, plans 1000-1002", _f(12.83, 0.0, 0.0, lost=2))])
+        + _cases("open floor", _BUILDINGS_TABLE, [
+            ("the study's default case", _f(1.476, 0.0019, 0.0, lost=0))]),
     },
 }
 """What each shipped model's measurements add to the card its training config gives. A new
