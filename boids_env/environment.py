@@ -112,13 +112,11 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     ``reward_gap`` weight adds −w·(distance to the leader − 2.25 m)₊·dt, a dense cohesion
     signal (info key ``reward_gap``; with ``route_leader``, for a follower that does not see
     the leader, the distance is the route's length: behind a wall it is as far as its way
-    round). The opt-in
-    ``reward_intrusion`` weight adds −w·dt while
-    a follower is within ``intrusion_distance`` (1.2 m, Hall's personal zone) of the leader
-    or a pedestrian (info key ``reward_intrusion``), for following a person.
-    The opt-in ``reward_parked`` weight adds −w·speed·dt
-    while the leader has stood still for more than ``parked_after`` (info key
-    ``reward_parked``; with ``parked_within`` only for followers that near the leader):
+    round). The opt-in ``reward_intrusion`` weight adds −w·dt while a follower is within
+    ``intrusion_distance`` (1.2 m, Hall's personal zone) of the leader or a pedestrian (info
+    key ``reward_intrusion``), for following a person. The opt-in ``reward_parked`` weight
+    adds −w·speed·dt while the leader has stood still for more than ``parked_after`` (info
+    key ``reward_parked``; with ``parked_within`` only for followers near the leader):
     followers park around a leader who stops.
 
     ## Starting State

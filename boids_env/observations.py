@@ -720,19 +720,15 @@ class Observer:
                                  cfg.velocity_bound, self.reach, self.frame, self.sensors,
                                  crowd, headings)
         if cfg.route_leader:  # the leader out of sight: as reached along its route
-            hidden = ~leader_in_sight(self._route_grid(), positions)
-            if hidden.any():
-                route = obs[hidden][:, self.layout.block("route")].astype(np.float64)
-                along = np.minimum(np.maximum(route[:, 0:2] * route[:, 2:3], -self.reach),
-                                   self.reach)
-                rows = np.flatnonzero(hidden)
-                obs[rows, self.layout.leader_position.start] = along[:, 0]
-                obs[rows, self.layout.leader_position.start + 1] = along[:, 1]
+            rows = np.flatnonzero(~leader_in_sight(self._route_grid(), positions))
+            if len(rows):
+                route = obs[rows, self.layout.block("route")].astype(np.float64)
+                obs[rows, self.layout.leader_position] = np.minimum(
+                    np.maximum(route[:, 0:2] * route[:, 2:3], -self.reach), self.reach)
                 # its motion as seen along that way: the leader's speed along the route
-                seen = obs[rows][:, self.layout.leader_velocity].astype(np.float64)
+                seen = obs[rows, self.layout.leader_velocity].astype(np.float64)
                 speed = np.sqrt(seen[:, 0] * seen[:, 0] + seen[:, 1] * seen[:, 1])
-                obs[rows, self.layout.leader_velocity.start] = speed * route[:, 0]
-                obs[rows, self.layout.leader_velocity.start + 1] = speed * route[:, 1]
+                obs[rows, self.layout.leader_velocity] = speed[:, None] * route[:, 0:2]
         if cfg.obs_noise > 0:
             if self._rng is None:
                 raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")
