@@ -586,6 +586,14 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         return Crowd(world.pedestrian_positions, world.pedestrian_velocities) if world.p else None
 
     @property
+    def leader_hidden(self) -> npt.NDArray[np.bool_] | None:
+        """With ``route_leader``: which followers (F,, in agent order) did not see the leader
+        through free space at the last observation, so read it along their route (a
+        policy that switches on it: :class:`~boids_env.policies.sight_switch.SightSwitch`);
+        None without ``route_leader``."""
+        return self._observer.leader_hidden
+
+    @property
     def leader(self) -> Leader:
         """The current episode's leader (e.g. an ExternalLeader to steer)."""
         if self._leader is None:

@@ -670,6 +670,10 @@ class Observer:
         self.heading = INITIAL_HEADING
         self._rng: np.random.Generator | None = None
         self._leader_velocity: npt.NDArray[np.float64] | None = None
+        self.leader_hidden: npt.NDArray[np.bool_] | None = None
+        """With ``route_leader``: which followers did not see the leader in the last call
+        (F,), whose leader blocks were read along the route; None otherwise (and before the
+        first call of an episode)."""
 
     def make_space(self) -> spaces.Box:
         """A new observation Box (one object per agent: seeding one must not reseed
@@ -686,6 +690,7 @@ class Observer:
         self.heading = float(heading)
         self._rng = rng
         self._leader_velocity = None
+        self.leader_hidden = None
 
     @property
     def frame(self) -> npt.NDArray[np.float64] | None:
@@ -720,7 +725,8 @@ class Observer:
                                  cfg.velocity_bound, self.reach, self.frame, self.sensors,
                                  crowd, headings)
         if cfg.route_leader:  # the leader out of sight: as reached along its route
-            rows = np.flatnonzero(~leader_in_sight(self._route_grid(), positions))
+            self.leader_hidden = hidden = ~leader_in_sight(self._route_grid(), positions)
+            rows = np.flatnonzero(hidden)
             if len(rows):
                 route = obs[rows, self.layout.block("route")].astype(np.float64)
                 obs[rows, self.layout.leader_position] = np.minimum(

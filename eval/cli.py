@@ -227,10 +227,10 @@ def parse_start(text: str) -> float:
 def _policy_extras(specs: list[str]) -> list[str]:
     """Extras the named policies need: a saved SB3 model without a numpy actor (one not saved
     by ``boids train``) needs ``train``; the shipped ones and ours act in numpy."""
-    from boids_env.policies.registry import MODELS
+    from boids_env.policies.registry import MODELS, switch_parts
     from boids_env.policies.sb3_policy import has_numpy_actor
 
-    models = [str(MODELS.get(s, s)) for s in specs]
+    models = [str(p) for s in specs for p in (switch_parts(s) or (MODELS.get(s, s),))]
     needs = any(m.endswith(".zip") and not has_numpy_actor(m) for m in models)
     return ["train"] if needs else []
 

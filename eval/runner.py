@@ -78,6 +78,11 @@ class PolicySpec:
     def label(self) -> str:
         if self.name is not None:
             return self.name
+        from boids_env.policies.registry import SIGHT_SWITCHED, switch_parts
+
+        parts = None if self.spec in SIGHT_SWITCHED else switch_parts(self.spec)
+        if parts:
+            return "+".join(p.stem for p in parts)
         base = Path(self.spec).stem if self.spec.endswith(".zip") else self.spec
         return f"{base}[{self.preset}]" if self.spec == "reynolds" else base
 
@@ -86,17 +91,19 @@ class PolicySpec:
         """Changes when the policy does (a model file's content is hashed, once; a zip
         without a numpy actor acts through torch when trusted, from its weights in numpy
         otherwise)."""
-        from boids_env.policies.registry import MODELS
+        from boids_env.policies.registry import MODELS, switch_parts
 
-        path = MODELS.get(self.spec, Path(self.spec))
-        if path.suffix == ".zip" and path.is_file():
+        paths = switch_parts(self.spec) or (MODELS.get(self.spec, Path(self.spec)),)
+        if all(p.suffix == ".zip" and p.is_file() for p in paths):
             from boids_env.policies.sb3_policy import has_numpy_actor
 
-            check_file(path, "policy model", MAX_MODEL_BYTES)  # not a device, not huge
-            with open(path, "rb") as fh:
-                digest = hashlib.file_digest(fh, "sha256").hexdigest()[:16]
-            trusted = self.trust and not has_numpy_actor(path)
-            return f"{self.spec}#{digest}" + ("#trusted" if trusted else "")
+            digests = []
+            for path in paths:
+                check_file(path, "policy model", MAX_MODEL_BYTES)  # not a device, not huge
+                with open(path, "rb") as fh:
+                    digests.append(hashlib.file_digest(fh, "sha256").hexdigest()[:16])
+            trusted = self.trust and not all(has_numpy_actor(p) for p in paths)
+            return f"{self.spec}#{'+'.join(digests)}" + ("#trusted" if trusted else "")
         return f"{self.spec}|{self.preset}"
 
 
@@ -105,9 +112,10 @@ def _check_model_fits(policy: PolicySpec, suite: Suite) -> None:
     once, rather than found failing in every episode. Not for a trusted zip: loading it runs
     what its pickles hold, which stays in the workers."""
     from boids_env.eval.episode import check_fits, env_fields_for, warn_outside_card
-    from boids_env.policies.registry import MODELS, load_policy
+    from boids_env.policies.registry import MODELS, load_policy, switch_parts
 
-    if policy.trust or not (policy.spec.endswith(".zip") or policy.spec in MODELS):
+    if policy.trust or not (policy.spec.endswith(".zip") or policy.spec in MODELS
+                            or switch_parts(policy.spec)):
         return
     loaded = load_policy(policy.spec, preset=policy.preset, trust=policy.trust)
     check_fits(loaded, [case.env for case in suite.cases])
@@ -327,9 +335,9 @@ def _fields_holder(policy: PolicySpec, case: Case) -> Any:
     policy itself (Reynolds parameters, a ``module:object``'s own fields)."""
     from types import SimpleNamespace
 
-    from boids_env.policies.registry import MODELS, load_policy
+    from boids_env.policies.registry import load_policy, model_path
 
-    path = MODELS.get(policy.spec, Path(policy.spec))
+    path = model_path(policy.spec)
     if path.suffix == ".zip":
         from boids_env.policies.sb3_policy import read_meta
 

@@ -46,6 +46,10 @@ filter on."""
 MODELS = {"learned": LEARNED_MODEL, "learned-study": STUDY_MODEL,
           "learned-person": PERSON_MODEL, "learned-scenes": SCENES_MODEL,
           "learned-buildings": BUILDINGS_MODEL}
+SIGHT_SWITCHED = {"learned-buildings": "learned-scenes"}
+"""Shipped names that act as a :class:`~boids_env.policies.sight_switch.SightSwitch`: the
+followers that see the leader act with the model named here, the others with the name's own
+model (:data:`MODELS`). ``SEEN+HIDDEN`` (two model names or zips) builds any such pair."""
 NOT_SUGGESTED = ("learned-study",)
 """Shipped models never named as the one that fits an env (not made for robots)."""
 
@@ -78,6 +82,25 @@ def fitting_model(config: EnvConfig, card: ModelCard | None = None) -> str | Non
     return None
 
 
+def switch_parts(spec: str) -> tuple[Path, Path] | None:
+    """The (in-sight, out-of-sight) model files of a policy that switches by sight
+    (:data:`SIGHT_SWITCHED` names, ``SEEN+HIDDEN``); None for any other spec."""
+    if spec in SIGHT_SWITCHED:
+        return MODELS[SIGHT_SWITCHED[spec]], MODELS[spec]
+    seen, plus, hidden = spec.partition("+")
+    if not plus or (spec.endswith(".zip") and Path(spec).is_file()):
+        return None
+    parts = (Path(MODELS.get(seen, seen)), Path(MODELS.get(hidden, hidden)))
+    return parts if all(p.suffix == ".zip" for p in parts) else None
+
+
+def model_path(spec: str) -> Path:
+    """The model file whose metadata (env fields, card) stands for the policy ``spec``: a
+    shipped name's, a zip's own, or a sight switch's out-of-sight model."""
+    parts = switch_parts(spec)
+    return parts[1] if parts else Path(MODELS.get(spec, spec))
+
+
 def split_preset(spec: str, preset: str = "paper") -> tuple[str, str]:
     """``"reynolds@boids_ros"`` -> ``("reynolds", "boids_ros")``; any other spec keeps
     ``preset``. A preset on another policy, or an unknown preset, is a ``ValueError``."""
@@ -102,8 +125,11 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         spec: ``reynolds`` (the study's controller; ``reynolds@boids_ros`` picks a preset),
             ``random``, ``learned`` (the shipped PPO followers), ``learned-study`` (PPO on the
             study's reward alone), ``learned-scenes`` (the followers for a lab: scenes,
-            standstills, the safety filter), a path to a saved SB3 model
-            (``.zip``), or ``module:object`` naming a Policy instance, a Policy class (built
+            standstills, the safety filter), ``learned-buildings`` (``learned-scenes`` for the
+            followers that see the leader, a route-sensing model for the others), a path to a
+            saved SB3 model (``.zip``), ``SEEN+HIDDEN`` (two of those models switched by sight,
+            :class:`~boids_env.policies.sight_switch.SightSwitch`), or ``module:object``
+            naming a Policy instance, a Policy class (built
             with no arguments) or a factory returning a Policy.
         preset: Reynolds parameter preset (``paper`` or ``boids_ros``) unless ``spec`` names
             one.
@@ -124,6 +150,12 @@ def load_policy(spec: str, *, preset: str = "paper", max_speed: float = 0.5,
         return ReynoldsPolicy(preset, **reynolds_overrides)
     if spec == "random":
         return RandomPolicy(max_speed)
+    parts = switch_parts(spec)
+    if parts is not None:
+        from boids_env.policies.sight_switch import SightSwitch
+
+        seen, hidden = (load_policy(str(p), trust=trust) for p in parts)
+        return SightSwitch(seen, hidden, name=spec)
     spec = str(MODELS.get(spec, spec))
     if spec.endswith(".zip"):
         if not Path(spec).is_file():
@@ -161,6 +193,11 @@ def check_policy_spec(spec: str, preset: str = "paper", *, trust: bool = False) 
     ``TypeError``, ``FileNotFoundError``)."""
     spec, preset = split_preset(spec, preset)
     if spec in ("reynolds", "random"):
+        return
+    parts = switch_parts(spec)
+    if parts is not None:
+        for part in parts:
+            check_policy_spec(str(part), trust=trust)
         return
     spec = str(MODELS.get(spec, spec))
     if spec.endswith(".zip"):

@@ -207,7 +207,7 @@ def _cmd_card(args: argparse.Namespace) -> int:
     import json
 
     from boids_env.policies.cards import CARD_LIMIT, ModelCard
-    from boids_env.policies.registry import MODELS, model_card, shipped_cards
+    from boids_env.policies.registry import MODELS, model_card, model_path, shipped_cards
     from boids_env.train.cards import write_card
     from boids_env.untrusted import parse_json, read_text
 
@@ -219,7 +219,7 @@ def _cmd_card(args: argparse.Namespace) -> int:
             card = cards.get(name)
             print(f"{name:<16} {path.name:<16} {card.summary if card else '(no card)'}")
         return 0
-    path = MODELS.get(args.model, Path(args.model))
+    path = model_path(args.model)
     if not path.is_file():
         raise FileNotFoundError(f"model not found: {args.model} (a shipped model: "
                                 f"{', '.join(MODELS)}; or a model zip)")

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from boids_env.config import EnvConfig
 from boids_env.eval.episode import bind_policy, env_fields_for
@@ -123,6 +124,12 @@ class ControllerCore:
         self.answered = 0
         self.nonfinite = 0
         """Commands sent as a stop because they were not finite (non-finite odometry)."""
+
+    @property
+    def leader_hidden(self) -> npt.NDArray[np.bool_] | None:
+        """Which followers did not see the leader at the last tick (``route_leader``; as
+        :attr:`BoidsEnv.leader_hidden <boids_env.environment.BoidsEnv.leader_hidden>`)."""
+        return self.observer.leader_hidden
 
     @property
     def heading(self) -> bool:

@@ -315,3 +315,32 @@ def test_wide_pedestrians_start_apart_or_are_refused_never_a_crash():
     positions = env._people.pedestrians
     gaps = [np.hypot(*(a - b)) for k, a in enumerate(positions) for b in positions[k + 1:]]
     assert min(gaps) >= 1.1, gaps
+
+
+def test_the_ros_graph_controller_switches_learned_buildings_on_its_own_sight_test():
+    # learned-buildings reads which followers see the leader from the controller's own
+    # observer (the controller node builds the observations, not the env)
+    from boids_env.eval.graph.controller import (
+        ControllerCore,
+        ControllerOptions,
+        controller_policy,
+    )
+    from boids_env.eval.graph.sim import SimCore, SimOptions
+
+    options = ControllerOptions(policy="learned-buildings", quiet=True)
+    policy = controller_policy(options)
+    fields = {**policy.env_fields, "scene": "floorplan:1016", "robots": 7, "max_cycles": 80}
+    core = SimCore(SimOptions(env_fields=fields, lockstep=True, quiet=True))
+    transport = None
+
+    def episode(_stamp):
+        return transport.info
+
+    controller = ControllerCore(options, policy, core.config, "/c", episode)
+    assert controller.leader_hidden is None  # no tick yet
+    transport = _Loopback(controller)
+    ours = core.run_episode(0, transport)
+    assert ours.recording.positions.shape == (81, 7, 2)
+    assert ours.stats["rejected_commands"] == 0
+    hidden = controller.leader_hidden
+    assert hidden is not None and hidden.shape == (6,) and hidden.dtype == bool
