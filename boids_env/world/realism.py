@@ -178,10 +178,12 @@ class Realism:
                     break
         return stalled
 
-    def observations(self, obs: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    def observations(self, obs: npt.NDArray[np.float32],
+                     hidden: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
         """``obs`` with the rows of followers whose observation went stale replaced by their
-        previous one (see :class:`StaleObservations`)."""
-        return self.stale(obs)
+        previous one (see :class:`StaleObservations`; ``hidden`` goes stale with them, into
+        ``stale.hidden``)."""
+        return self.stale(obs, hidden)
 
 
 STALE_STREAM = 0x57A1E
@@ -202,11 +204,20 @@ class StaleObservations:
         self.p = float(p)
         self.rng = np.random.default_rng([int(seed), STALE_STREAM])
         self._last: npt.NDArray[np.float32] | None = None
+        self.hidden: npt.NDArray[np.bool_] | None = None
+        """The per-row flags given with the observations (:meth:`__call__`), as delivered:
+        a stale row keeps the flag of the observation it repeats."""
 
-    def __call__(self, obs: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    def __call__(self, obs: npt.NDArray[np.float32],
+                 hidden: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
+        """``obs`` with stale rows replaced; ``hidden`` (per row, e.g. the observer's
+        ``leader_hidden``) goes stale with its row, into :attr:`hidden`."""
         if self.p > 0 and self._last is not None:
             stale = self.rng.random(len(obs)) < self.p
             obs = obs.copy()
             obs[stale] = self._last[stale]
+            if hidden is not None and self.hidden is not None:
+                hidden = np.where(stale, self.hidden, hidden)
         self._last = obs
+        self.hidden = hidden
         return obs

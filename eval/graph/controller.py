@@ -188,7 +188,9 @@ class ControllerCore:
             crowd = Crowd(tick.crowd_positions, tick.crowd_velocities)
         obs = self.observer(tick.positions, velocities, crowd, headings)
         if self.stale is not None:
-            obs = self.stale(obs)
+            obs = self.stale(obs, self.observer.leader_hidden)
+            if self.observer.leader_hidden is not None:  # as the env: stale with its row
+                self.observer.leader_hidden = self.stale.hidden
         actions = self.policy.act(dict(zip(self.agents, obs, strict=True)))
         raw = np.array([actions[a] for a in self.agents], dtype=np.float64)
         if headings is None:

@@ -135,3 +135,42 @@ def test_the_switch_needs_an_env_with_route_sensing_and_its_rows():
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"3 observation rows, .* marked 12"):
         policy.act_batch(obs[:3])
+
+
+def test_a_stale_observation_keeps_the_sight_it_was_seen_with():
+    # ROS realism repeats a follower's previous observation now and then: the switch must
+    # then read that observation's sight flag too, not the current one
+    from boids_env.world.realism import StaleObservations
+
+    stale = StaleObservations(1.0, seed=0)  # every row stale after the first call
+    first = np.zeros((3, 2), dtype=np.float32)
+    stale(first, np.array([True, False, True]))
+    out = stale(first + 1, np.array([False, True, False]))
+    np.testing.assert_array_equal(out, first)
+    assert stale.hidden.tolist() == [True, False, True]
+    fresh = StaleObservations(0.0, seed=0)
+    fresh(first, np.array([True, False, True]))
+    fresh(first + 1, np.array([False, True, False]))
+    assert fresh.hidden.tolist() == [False, True, False]
+
+
+def test_the_env_under_ros_realism_marks_the_sight_of_the_rows_it_delivers():
+    env = BoidsEnv(scene="floorplan:1002", robots=13, route_sensing=True, route_leader=True,
+                   realism="ros", startup_time=0.0)
+    env.reset_arrays(seed=0)
+    rng = np.random.default_rng(0)
+    differed = 0
+    for _ in range(300):
+        env.step_arrays(rng.uniform(-0.5, 0.5, (12, 2)))
+        delivered = env.leader_hidden
+        assert env._realism.stale.hidden is delivered
+        differed += int((delivered != ~leader_in_sight_now(env)).any())
+    assert differed > 0  # some rows went stale with another sight than the current one
+
+
+def leader_in_sight_now(env):
+    from boids_env.world.route import leader_in_sight, route_grid
+
+    cfg = env.episode_config
+    grid = route_grid(cfg.scene, cfg.world.robot_radius, cfg.observation.route_cell)
+    return leader_in_sight(grid, env._world.positions)
