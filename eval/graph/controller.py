@@ -27,6 +27,7 @@ from boids_env.policies.registry import load_policy, split_preset
 from boids_env.vectors import clip_speed
 from boids_env.world.realism import StaleObservations
 from boids_env.world.robots import make_model, quaternion_headings, to_world
+from boids_env.world.safety import filter_commands
 from boids_env.world.scenario import holding
 
 SYNC_MODES = ("stamp", "rate")
@@ -193,7 +194,11 @@ class ControllerCore:
                 self.observer.leader_hidden = self.stale.hidden
         actions = self.policy.act(dict(zip(self.agents, obs, strict=True)))
         raw = np.array([actions[a] for a in self.agents], dtype=np.float64)
-        if headings is None:
+        filtered = (self.config.safety.safety_filter
+                    and self.config.observation.action != "unicycle")
+        if filtered:  # held still there, during the start-up hold, as the env holds them
+            commands = self._filtered(raw, tick, velocities, headings)
+        elif headings is None:
             # as the env parses them: float64, then into the world frame (no speed clip here:
             # the robot, or the simulator, limits the speed, as the env does)
             commands = self.observer.to_world(raw)
@@ -204,13 +209,30 @@ class ControllerCore:
         else:  # the robot's driver: its law from the speed-limited world-frame command
             world = clip_speed(self.observer.to_world(raw), self.config.world.max_speed)
             commands = self.model.native(world, headings[1:])
-        if self._holding(tick.stamp_ns):
+        if self._holding(tick.stamp_ns) and not filtered:
             commands = np.zeros_like(commands)
         # a non-finite odometry poisons its neighbours' commands: they go out as a stop
         commands, bad = finite_commands(commands)
         self.nonfinite += bad
         self.answered += 1
         return commands
+
+    def _filtered(self, raw: np.ndarray, tick: Tick, velocities: np.ndarray,
+                  headings: np.ndarray | None) -> np.ndarray:
+        """The commands through the safety filter, as the env filters them in-process when
+        the policy's env fields ask for it (``learned-scenes``, ``learned-buildings``): the
+        speed-limited world-frame commands (held still during the start-up hold), filtered
+        against every robot's odometry and the scene, then, for robots with a heading, the
+        driver's law. The leader's odometry velocity stands for the leader's command, which
+        the in-process env knows and a controller node does not."""
+        w = self.config.world
+        world = clip_speed(self.observer.to_world(raw), w.max_speed)
+        if self._holding(tick.stamp_ns):
+            world = np.zeros_like(world)
+        world = filter_commands(world, tick.positions, velocities, velocities[0],
+                                w.robot_radius, w.max_speed, self.config.scene,
+                                self.config.safety)
+        return world if headings is None else self.model.native(world, headings[1:])
 
     def world_forces(self) -> dict[str, np.ndarray]:
         """The policy's rule forces of the last answer in the world frame (empty for a policy
