@@ -174,3 +174,24 @@ def leader_in_sight_now(env):
     cfg = env.episode_config
     grid = route_grid(cfg.scene, cfg.world.robot_radius, cfg.observation.route_cell)
     return leader_in_sight(grid, env._world.positions)
+
+
+def test_boids_eval_runs_a_pair_named_by_its_two_models(tmp_path):
+    import pandas as pd
+
+    from boids_env.train.cli import main
+
+    suite = tmp_path / "one.toml"
+    suite.write_text('name = "one"\nseeds = 1\n[[case]]\nname = "door"\ngroup = "g"\n'
+                     'scene = "doorway"\nrobots = 4\nmax_cycles = 40\n')
+    pair = f"learned-scenes+{BUILDINGS_MODEL}"
+    out = tmp_path / "out"
+    assert main(["eval", "--suite", str(suite), "--policy", pair, "--policy",
+                 "learned-buildings", "--workers", "1", "--no-progress", "--out",
+                 str(out)]) == 0
+    rows = pd.read_parquet(out / "results.parquet").set_index("policy")
+    assert sorted(rows.index) == ["learned-buildings", "ppo_scenes+ppo_buildings"]
+    # the same two models: the same episode
+    assert rows.loc["learned-buildings", "V_sep"] == rows.loc["ppo_scenes+ppo_buildings",
+                                                            "V_sep"]
+    assert rows.loc["learned-buildings", "steps"] == 40
