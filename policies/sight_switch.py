@@ -17,11 +17,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.config import FIELD_OWNER
 from boids_env.policies.base import BatchPolicy
 from boids_env.world.route import SIZE as ROUTE_SIZE
 
 ROUTE_FIELDS = ("route_sensing", "route_leader", "route_cell")
-"""The env fields only the out-of-sight model may set."""
+"""The env fields only the out-of-sight model may set (besides its reward's)."""
 
 
 class SightSwitch(BatchPolicy):
@@ -52,9 +53,11 @@ class SightSwitch(BatchPolicy):
                              f"without route sensing (its env_fields: {seen_fields})")
         differ = sorted(k for k, v in seen_fields.items()
                         if k not in hidden_fields or hidden_fields[k] != v)
+        differ += sorted(k for k in hidden_fields if k not in seen_fields
+                         and k not in ROUTE_FIELDS and FIELD_OWNER.get(k) != "metrics")
         if differ:
             raise ValueError(f"{name}: the two models were trained in different envs: "
-                             + ", ".join(f"{k}={seen_fields[k]!r} against "
+                             + ", ".join(f"{k}={seen_fields.get(k, '(unset)')!r} against "
                                          f"{hidden_fields.get(k, '(unset)')!r}"
                                          for k in differ))
         seen_size, hidden_size = getattr(seen, "obs_size", None), getattr(hidden, "obs_size",

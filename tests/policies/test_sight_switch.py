@@ -114,6 +114,9 @@ def test_a_pair_that_cannot_switch_is_refused_with_the_reason():
     other = _fake({**scenes.env_fields, "frame": "world"}, scenes.obs_size)
     with pytest.raises(ValueError, match="different envs: frame='world' against 'leader'"):
         SightSwitch(other, route)
+    with pytest.raises(ValueError, match=r"different envs: safety_filter='\(unset\)' "
+                                         r"against True"):
+        load_policy(f"learned+{BUILDINGS_MODEL}")  # trained without the safety filter
     with pytest.raises(ValueError, match=r"without its 4 route inputs \(sizes 10 and"):
         SightSwitch(_fake(dict(scenes.env_fields), 10), route)
     with pytest.raises(ValueError, match="out-of-sight model must be trained with "
