@@ -43,6 +43,17 @@ class ArrayStep(NamedTuple):
     truncated: bool
     """The episode ended (all followers are truncated together; there is no termination)."""
 
+class _Plan(NamedTuple):
+    """A step's commands, between :meth:`BoidsEnv._before_physics` and the physics."""
+
+    full: npt.NDArray[np.float64]
+    """(N, 2) the leader's command then the followers' (native (v, ω) with ``native``)."""
+    crowd: npt.NDArray[np.float64] | None
+    """(P, 2) the crowd's velocities, or None without one."""
+    native: bool
+    """``action="unicycle"``: ``full`` holds the drivers' own commands."""
+
+
 REWARD_INFO_KEYS = ("reward_separation", "reward_cohesion", "reward_alignment",
                     "reward_proximity", "reward_contact", "reward_wall", "reward_gap",
                     "reward_intrusion", "reward_parked")
@@ -364,7 +375,21 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         """One control step from checked actions (F, 2) in the observation frame: their speed
         limited in the world frame (as a simulator receiving world-frame commands limits
         it, so that a policy in another frame gets the same commands bit for bit), the
-        physics, the metrics and rewards, the episode's end, the next observations."""
+        physics, the metrics and rewards, the episode's end, the next observations.
+
+        Three parts, which :class:`~boids_env.batch.EnvBatch` also calls (computing the
+        middle of the last part for all its copies at once): :meth:`_before_physics`,
+        :meth:`_physics`, then the reward terms, the observations and :meth:`_after_physics`.
+        """
+        self._physics(self._before_physics(actions))
+        world = self._world
+        assert world is not None
+        terms = self._terms(world)
+        return self._after_physics(terms, self._observe())
+
+    def _before_physics(self, actions: npt.NDArray[np.float64]) -> _Plan:
+        """The step's commands from the checked actions: the speed limit, the start-up hold,
+        the crowd's walk, the leader's command, the safety filter (nothing stepped yet)."""
         world, leader = self._world, self._leader
         assert world is not None and leader is not None
         cfg = self.episode_config
@@ -393,29 +418,46 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._still_steps = 0 if lead[0] != 0.0 or lead[1] != 0.0 else self._still_steps + 1
         if native:
             full[0] = world.model.native(full[:1], world.heading_vectors[:1])[0]
-            full[1:] = commands
+        full[1:] = commands
+        return _Plan(full, crowd, native)
+
+    def _physics(self, plan: _Plan) -> None:
+        """Steps the world with the planned commands (realism between, if on) and records
+        them for replay."""
+        world = self._world
+        assert world is not None
+        full, crowd = plan.full, plan.crowd
+        if plan.native:
             world.step(None, native=full)
             self._history.append((None, None, crowd, full))
         elif self._realism is None:
-            full[1:] = commands
             world.step(full, None, crowd)
             self._history.append((full, None, crowd, None))
         else:
-            full[1:] = commands
             executed = self._realism.executed(full, world.positions, world.time)
             world.step(full, executed, crowd)
             self._history.append((full, executed, crowd, None))
-        terms = self._terms(world)
+
+    def _after_physics(self, terms: npt.NDArray[np.float64],
+                       observations: npt.NDArray[np.float32]) -> ArrayStep:
+        """The step's result from its reward terms (9, F) and next observations: the
+        episode's end (the leader's finish and tail, the step limit), rendering."""
+        return ArrayStep(observations, terms.sum(axis=0), terms, self._end_step())
+
+    def _end_step(self) -> bool:
+        """Whether the episode ended with this step (the leader's finish and tail, the step
+        limit; the agents leave then), after rendering it in ``human`` mode."""
+        world, leader = self._world, self._leader
+        assert world is not None and leader is not None
         if self._finish_step is None and leader.finished:
             self._finish_step = world.steps
         done = world.steps >= self._step_limit or (
             self._finish_step is not None and world.steps >= self._finish_step + self._tail_steps)
-        result = ArrayStep(self._observe(), terms.sum(axis=0), terms, bool(done))
         if done:
             self.agents = []
         if self.render_mode == "human":
             self.render()
-        return result
+        return bool(done)
 
     def _terms(self, world: World) -> npt.NDArray[np.float64]:
         """The step's reward terms (9, F) in ``REWARD_INFO_KEYS`` order: the study's three
