@@ -17,6 +17,7 @@ from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from boids_env import kernels, metrics, proxemics
 from boids_env.config import EnvConfig
+from boids_env.fused import Fused
 from boids_env.observations import Crowd, Observer
 from boids_env.vectors import as_velocities, clip_speed
 from boids_env.world import scenario
@@ -185,6 +186,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._leader: Leader | None = None
         self._people: Any = None
         self._renderer: Any = None
+        self._fused: Fused | None = None
         self.episode_config = self.config
         self.overlays: dict[str, npt.NDArray[np.float64]] = {}
         """Per-follower vectors (F, 2) the renderer draws as arrows (e.g. rule forces)."""
@@ -382,10 +384,24 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         :meth:`_physics`, then the reward terms, the observations and :meth:`_after_physics`.
         """
         self._physics(self._before_physics(actions))
+        return self._after_physics(*self._outcome())
+
+    def _outcome(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float32]]:
+        """The step's reward terms (9, F) and next observations after the physics: in one
+        compiled call where the layout allows (:mod:`boids_env.fused`; the same bits),
+        else :meth:`_terms` and :meth:`_observe`."""
+        compiled = kernels.loaded()
+        if compiled is not None:
+            followers = len(self.possible_agents)
+            plan = self._fused = Fused.current(self._fused, [self], [0, followers])
+            if plan.index:
+                obs = np.empty((followers, self._observer.layout.size), dtype=np.float32)
+                terms = np.zeros((len(REWARD_INFO_KEYS), followers))
+                plan.run(compiled, obs, terms)
+                return terms, obs
         world = self._world
         assert world is not None
-        terms = self._terms(world)
-        return self._after_physics(terms, self._observe())
+        return self._terms(world), self._observe()
 
     def _before_physics(self, actions: npt.NDArray[np.float64]) -> _Plan:
         """The step's commands from the checked actions: the speed limit, the start-up hold,
@@ -690,6 +706,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         state = self.__dict__.copy()
         state["_world"] = None
         state["_renderer"] = None
+        state["_fused"] = None  # rebuilt on use: its counts are views of the env's
         state["_replay"] = self._world is not None
         return state
 
