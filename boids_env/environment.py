@@ -342,14 +342,30 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             return {}, {}, {}, {}, {}
         agents = self.agents
         result = self._advance(self._parse_actions(actions))
-        k0, k1, k2, k3, k4, k5, k6, k7, k8 = REWARD_INFO_KEYS
-        # a literal per agent: 4× faster than dict(zip(...)) (1 ms a step at 1000 robots)
-        infos = {a: {k0: c0, k1: c1, k2: c2, k3: c3, k4: c4, k5: c5, k6: c6, k7: c7, k8: c8}
-                 for a, (c0, c1, c2, c3, c4, c5, c6, c7, c8) in zip(
-                     agents, result.terms.T.tolist(), strict=True)}
         return (dict(zip(agents, result.observations, strict=True)),
                 dict(zip(agents, result.rewards.tolist(), strict=True)),
-                dict.fromkeys(agents, False), dict.fromkeys(agents, result.truncated), infos)
+                dict.fromkeys(agents, False), dict.fromkeys(agents, result.truncated),
+                self._infos(agents, result.terms))
+
+    def _infos(self, agents: list[AgentID], terms: npt.NDArray[np.float64]
+               ) -> dict[AgentID, dict[str, Any]]:
+        """Each agent's info dict: its reward terms (9, F) by ``REWARD_INFO_KEYS``."""
+        k0, k1, k2, k3, k4, k5, k6, k7, k8 = REWARD_INFO_KEYS
+        if not (self._safety_on or self._gap_scale or self._intrusion_scale
+                or self._parked_scale):
+            # the opt-in rows are the zeros they started as: a copy of the zero dict with
+            # the study's three terms set (a third cheaper than a literal per agent)
+            t0, t1, t2 = terms[:3].tolist()
+            copy = dict.fromkeys(REWARD_INFO_KEYS, 0.0).copy
+            infos = {}
+            for a, c0, c1, c2 in zip(agents, t0, t1, t2, strict=True):
+                info = infos[a] = copy()
+                info[k0], info[k1], info[k2] = c0, c1, c2
+            return infos
+        # a literal per agent: 4× faster than dict(zip(...)) (1 ms a step at 1000 robots)
+        return {a: {k0: c0, k1: c1, k2: c2, k3: c3, k4: c4, k5: c5, k6: c6, k7: c7, k8: c8}
+                for a, (c0, c1, c2, c3, c4, c5, c6, c7, c8) in zip(
+                    agents, terms.T.tolist(), strict=True)}
 
     def step_arrays(self, actions: npt.ArrayLike) -> ArrayStep:
         """:meth:`step` without dicts, for vectorised trainers: ``actions`` (F, 2), one row per
