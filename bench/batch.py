@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+import json
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -57,3 +59,27 @@ def batch_rows(sizes: list[int], steps: int, repeats: int, record: Callable[...,
             record(f"{kind} {copies}x{ROBOTS}", ROBOTS, ROBOTS - 1, rate)
         ratios[f"batch_over_separate_{copies}x{ROBOTS}"] = paired(rounds, "batch", "separate")
     return ratios
+
+
+def cpu_rounds(sizes: list[int], steps: int, rounds: int) -> dict[int, dict[str, list[float]]]:
+    """CPU time (µs) per copy-step of each way, round by round, for each K."""
+    out = {}
+    for copies in sizes:
+        loops = batch_loops(copies, steps)[0]
+        for fn in loops.values():
+            fn()  # warm-up
+        times: dict[str, list[float]] = {kind: [] for kind in loops}
+        for _ in range(rounds):
+            for kind, fn in loops.items():
+                start = time.process_time()
+                done = fn()
+                times[kind].append((time.process_time() - start) / done * 1e6)
+        out[copies] = times
+    return out
+
+
+if __name__ == "__main__":  # python -m boids_env.bench.batch: one process's JSON line
+    from boids_env import kernels
+
+    kernels.load()
+    print(json.dumps(cpu_rounds([4, 8, 16], 100, 3)))
