@@ -158,3 +158,39 @@ def test_a_single_env_takes_the_fused_call_and_keeps_the_references_bits(monkeyp
         assert got[1:] == want[1:]
     assert len(calls) == 80
     assert fast.episode_metrics() == slow.episode_metrics()
+
+
+def test_counts_stay_each_envs_own_across_copies_pickles_and_batches():
+    """The fused call keeps a copy's violation counts in views of one array: a copied or
+    unpickled env, and an env stepped alone, then in a batch, then alone again, still count
+    as one env stepped alone does."""
+    import copy
+    import pickle
+
+    assert kernels.load() is not None
+    rng = np.random.default_rng(0)
+    env = parallel_env(robots=9, max_cycles=60)
+    env.reset_arrays(seed=1)
+    for _ in range(20):
+        env.step_arrays(rng.uniform(-1, 1, (8, 2)))
+    twin, unpickled = copy.copy(env), pickle.loads(pickle.dumps(env))
+    with kernels.reference():
+        ref = copy.copy(env)
+    batch = EnvBatch([env, parallel_env(robots=9, max_cycles=60)])
+    batch.envs[1].reset_arrays(seed=2)
+    for _ in range(5):
+        act = rng.uniform(-1, 1, (16, 2))
+        batch.step_arrays(act)
+        for other in (twin, unpickled):
+            other.step_arrays(act[:8])
+        with kernels.reference():
+            ref.step_arrays(act[:8])
+    for _ in range(3):
+        act = rng.uniform(-1, 1, (8, 2))
+        for other in (env, twin, unpickled):
+            other.step_arrays(act)
+        with kernels.reference():
+            ref.step_arrays(act)
+    want = ref.episode_metrics()
+    assert env.episode_metrics() == twin.episode_metrics() == unpickled.episode_metrics() == want
+    assert env._counts is not twin._counts
