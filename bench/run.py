@@ -3,7 +3,8 @@
 Measures, after a warm-up, over several repeats (median and spread):
 env-steps/s and agent-steps/s of BoidsEnv with random actions and with the Reynolds policy in
 the loop, the bare-physics ceiling (World.step alone), a map scene and a lidar against the
-default, and MPE2 ``simple_spread`` when the ``bench`` extra is installed.
+default, K copies stepped through one ``EnvBatch`` against the same K envs in turn
+(``bench/batch.py``), and MPE2 ``simple_spread`` when the ``bench`` extra is installed.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from boids_env import EnvConfig, ScenarioConfig, kernels, parallel_env
+from boids_env.bench.batch import batch_rows
 from boids_env.config import layout_extent
 from boids_env.files import write_text
 from boids_env.policies import ReynoldsPolicy
@@ -266,6 +268,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.training:
         paired = _env_rows(sizes, repeats, record)
         paired.update(_scene_rows(repeats, record))
+        paired.update(batch_rows([8] if args.quick else [4, 8, 16], 100 if args.quick else 200,
+                                 repeats, record, timed_together, paired_ratio))
         for n in [6, 12, 18] if not args.quick else [18]:
             loop = mpe_loop(n, 200)
             if loop is None:

@@ -113,6 +113,61 @@ def violations(positions, commanded, angle, separation, cohesion, alignment_deg,
 
 
 @njit(cache=True)
+def _rotated(v, m):  # pragma: no cover - compiled
+    """``vectors.times_matrix(v, m)``: rows (M, 2) into the frame of the (2, 2) ``m``."""
+    out = np.empty_like(v)
+    for i in range(v.shape[0]):
+        out[i, 0] = v[i, 0] * m[0, 0] + v[i, 1] * m[1, 0]
+        out[i, 1] = v[i, 0] * m[0, 1] + v[i, 1] * m[1, 1]
+    return out
+
+
+@njit(cache=True)
+def batch_after(positions, velocities, commanded, angle, ints, params, bounds, counts, obs,
+                terms):  # pragma: no cover - compiled
+    """The study's observations, violation flags and reward terms of K copies in one call.
+
+    Copy ``c`` has robots ``ints[c, 0]:ints[c, 1]`` of the concatenated ``positions``,
+    ``velocities``, ``commanded`` and ``angle`` (its leader first) and its followers' rows
+    from ``ints[c, 2]`` on in ``obs``, ``terms`` and ``counts``; ``ints[c, 3:6]``: whether it
+    observes in the leader frame, its neighbour slots, the column of its first slot;
+    ``params[c]``: horizon, velocity bound, reach, the separation, cohesion and alignment
+    thresholds, wrap, the three reward scales, then its frame's matrix (row by row);
+    ``bounds[c]``: its Box's low and high. Each copy's arrays go through :func:`nearest`,
+    :func:`fill_observations` and :func:`violations` as one env's do (rotated into its frame
+    first, and then clipped to the Box as numpy's array ``clip`` does: the bound on a tie)."""
+    for c in range(ints.shape[0]):
+        a = ints[c, 0]
+        b = ints[c, 1]
+        r0 = ints[c, 2]
+        r1 = r0 + (b - a - 1)
+        k = ints[c, 4]
+        pos = positions[a:b]
+        vel = velocities[a:b]
+        if ints[c, 3]:
+            frame = params[c, 10:14].reshape(2, 2)
+            pos = _rotated(pos, frame)
+            vel = _rotated(vel, frame)
+        if k > 0 and b - a > 1:
+            index = nearest(pos, params[c, 0], k)[0]
+        else:
+            index = np.full((b - a - 1, k), -1, dtype=np.intp)
+        block = obs[r0:r1]
+        fill_observations(pos, vel, index, params[c, 1], params[c, 2], block, ints[c, 5])
+        if ints[c, 3]:
+            low = bounds[c, 0]
+            high = bounds[c, 1]
+            for i in range(block.shape[0]):
+                for j in range(block.shape[1]):
+                    x = block[i, j]
+                    x = x if x > low[j] else low[j]
+                    block[i, j] = x if x < high[j] else high[j]
+        violations(positions[a:b], commanded[a:b], angle[a:b], params[c, 3], params[c, 4],
+                   params[c, 5], params[c, 6] != 0.0, params[c, 7:10], counts[:, r0:r1],
+                   terms[:, r0:r1])
+
+
+@njit(cache=True)
 def clip_speed(v, limit):  # pragma: no cover - compiled
     """``vectors.clip_speed`` of rows (M, 2) whose speeds are all finite: ``(status, out)``,
     status 0 when no row is over the limit (``out`` is ``v``), 1 when scaled, 2 when some

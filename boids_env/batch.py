@@ -5,6 +5,17 @@ arrays in one block, one row per follower, the copies' followers one after anoth
 may have different group sizes). Each copy's results are bit-identical to stepping it alone
 with :meth:`BoidsEnv.step_arrays` (``tests/env/test_batch.py``). The actions of the whole
 batch are checked once, in one call, instead of once per copy.
+
+Each copy runs its step's first part (:meth:`BoidsEnv._before_physics`: speed limit, leader
+command, safety filter) and its physics in turn; then, with the compiled kernels loaded
+(:mod:`boids_env.kernels`), the observations, violation flags and reward terms of every
+*fused* copy come from one compiled call (``_compiled.batch_after``: the same kernels one env
+runs, copy by copy, in one loop). A copy is fused when its step needs nothing else
+(:func:`fusable`): holonomic robots below ``KD_TREE_MIN_ROBOTS``, the study's blocks only
+(any number of neighbour slots; world or leader frame; relative actions or not), no sensing
+noise, realism or crowd, alignment on the commands and none of the opt-in reward terms. Any
+other copy computes them with its own code (:meth:`BoidsEnv._terms`,
+:meth:`BoidsEnv._observe`), in the same call.
 """
 
 from __future__ import annotations
@@ -16,7 +27,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.environment import BoidsEnv
+from boids_env import kernels
+from boids_env.environment import REWARD_INFO_KEYS, BoidsEnv
+from boids_env.fused import Fused
 
 
 @dataclass(frozen=True)
@@ -56,6 +69,10 @@ class EnvBatch:
         self.sizes = [len(e.possible_agents) for e in envs]
         self.bounds = np.cumsum([0, *self.sizes]).tolist()
         self.obs_size = sizes.pop()
+        self._fused: Fused | None = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {**self.__dict__, "_fused": None}  # rebuilt on use (views of the counts)
 
     def __len__(self) -> int:
         return len(self.envs)
@@ -103,18 +120,23 @@ class EnvBatch:
         for i, env in enumerate(self.envs):
             if env._world is None or not env.agents:
                 raise RuntimeError(f"copy {i} has no live episode (reset it before stepping)")
+        for env, start, stop in zip(self.envs, self.bounds, self.bounds[1:], strict=False):
+            env._physics(env._before_physics(arr[start:stop]))
         observations = np.empty((self.rows, self.obs_size), dtype=np.float32)
-        rewards = np.empty(self.rows)
-        terms: npt.NDArray[np.float64] | None = None
-        truncated = np.zeros(len(self.envs), dtype=bool)
+        terms = np.zeros((len(REWARD_INFO_KEYS), self.rows))
+        compiled = kernels.loaded()
+        fused = self._fused_plan() if compiled is not None else None
+        if fused is not None:
+            fused.run(compiled, observations, terms)
         for i, env in enumerate(self.envs):
-            start, stop = self.bounds[i], self.bounds[i + 1]
-            result = env._advance(arr[start:stop])
-            if terms is None:
-                terms = np.empty((len(result.terms), self.rows))
-            observations[start:stop] = result.observations
-            rewards[start:stop] = result.rewards
-            terms[:, start:stop] = result.terms
-            truncated[i] = result.truncated
-        assert terms is not None
-        return BatchStep(observations, rewards, terms, truncated)
+            if fused is None or not fused.member[i]:
+                start, stop = self.bounds[i], self.bounds[i + 1]
+                terms[:, start:stop], observations[start:stop] = env._outcome()
+        truncated = np.array([env._end_step() for env in self.envs])
+        return BatchStep(observations, terms.sum(axis=0), terms, truncated)
+
+    def _fused_plan(self) -> Fused | None:
+        """The fused copies' constants (:class:`~boids_env.fused.Fused`), rebuilt when a
+        copy's episode config or counters changed (a reset); None when no copy is fused."""
+        self._fused = Fused.current(self._fused, self.envs, self.bounds)
+        return self._fused if self._fused.member.any() else None

@@ -57,6 +57,12 @@ def compiled() -> ModuleType | None:
     return load()
 
 
+def loaded() -> ModuleType | None:
+    """The kernel module if it is loaded already (and not switched off), else None; unlike
+    :func:`compiled` the call is not counted towards :data:`LOAD_AFTER`."""
+    return _module if _loaded and not _forced_off else None
+
+
 def load() -> ModuleType | None:
     """Loads the kernels now (None without numba or with ``BOIDS_KERNELS=0``)."""
     global _module, _loaded

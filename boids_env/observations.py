@@ -718,9 +718,7 @@ class Observer:
         velocity."""
         cfg = self.config.observation
         if cfg.frame == "leader":
-            vx, vy = float(velocities[0][0]), float(velocities[0][1])
-            if math.hypot(vx, vy) >= HEADING_MIN_SPEED:
-                self.heading = math.atan2(vy, vx)
+            self.follow(velocities)
         obs = build_observations(positions, velocities, self.layout, cfg.horizon,
                                  cfg.velocity_bound, self.reach, self.frame, self.sensors,
                                  crowd, headings)
@@ -744,6 +742,13 @@ class Observer:
         if cfg.relative_actions:
             self._leader_velocity = obs[:, self.layout.leader_velocity].astype(np.float64)
         return obs
+
+    def follow(self, velocities: FloatArray) -> None:
+        """Turns the leader frame's heading to the leader's velocity (the first row of
+        ``velocities``) when the leader moves fast enough to have one."""
+        vx, vy = float(velocities[0][0]), float(velocities[0][1])
+        if math.hypot(vx, vy) >= HEADING_MIN_SPEED:
+            self.heading = math.atan2(vy, vx)
 
     def _route_grid(self) -> RouteGrid:
         assert self.sensors.scene is not None

@@ -98,3 +98,14 @@ def test_lab_episode_costs_are_rounds_of_both_policies_and_their_median_quotient
     assert len(rows) == 3 and all(len(r) == 2 and min(r) > 0 for r in rows)
     quotients = sorted(b / a for a, b in rows)
     assert costs["learned_scenes_over_reynolds"] == quotients[1]
+
+
+def test_the_batch_rows_step_the_same_copies_both_ways():
+    from boids_env.bench.batch import batch_loops
+
+    loops, (together, apart) = batch_loops(3, 4)
+    assert loops["batch"]() == 12 and loops["separate"]() == 12  # copy-steps
+    assert len(together) == len(apart) == 3
+    for a, b in zip(together, apart, strict=True):  # the same worlds, bit for bit
+        assert a._world.steps == b._world.steps == 4
+        assert a.state().tobytes() == b.state().tobytes()

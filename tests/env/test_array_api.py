@@ -29,6 +29,9 @@ def test_array_api_is_bit_identical_to_the_dict_api(fields):
         assert res.rewards.tolist() == [rew_d[a] for a in agents], f"step {step}"
         for row, key in enumerate(REWARD_INFO_KEYS):
             assert res.terms[row].tolist() == [info_d[a][key] for a in agents], (step, key)
+        assert all(list(info_d[a]) == list(REWARD_INFO_KEYS) for a in agents)
+        assert all(type(v) is float for a in agents for v in info_d[a].values())
+        assert len({id(info_d[a]) for a in agents}) == len(agents)  # a dict each
         assert res.truncated == trunc_d[agents[0]] and not any(term_d.values())
         step += 1
     assert res.truncated and not by_array.agents

@@ -76,6 +76,10 @@ EPISODES = [
     ({"scene": "pillars", "static_slots": 2, "lidar_rays": 8}, "reynolds", 200),
     # robots with headings (neighbour heading blocks read the kernel's neighbour index)
     ({"robot": "turtlebot3_burger", "robots": 9}, "random", 150),
+    # the leader frame with relative actions and no slots, both in one fused call each
+    # step (boids_env.fused)
+    ({"robots": 13, "frame": "leader", "relative_actions": True}, "random", 150),
+    ({"robots": 4, "neighbours": 0, "frame": "leader"}, "random", 40),
     # no neighbour slots at all (the compiled blocks with an empty index)
     ({"robots": 5, "neighbours": 0, "obs_noise": 0.02}, "random", 50),
     # the KD-tree's neighbour search feeding the compiled observation blocks

@@ -1,0 +1,121 @@
+"""The study's after-physics work of one env or many in one compiled call.
+
+After the physics, a step computes every follower's violation flags and reward terms and
+its next observation. For the common layouts that is three kernels of
+:mod:`boids_env._compiled` (the neighbour search, the observation blocks, the flags) with a
+few numpy calls between; :class:`Fused` makes them one call (``_compiled.batch_after``), for
+one env (:meth:`BoidsEnv._outcome <boids_env.environment.BoidsEnv._outcome>`) or for K
+copies at once (:class:`boids_env.batch.EnvBatch`): the same kernels, copy by copy, in one
+loop, so the bits are each env's own.
+
+A copy is fused when its step needs nothing else (:func:`fusable`): holonomic robots below
+``KD_TREE_MIN_ROBOTS``, the study's blocks only (any number of neighbour slots, the world or
+the leader frame, relative actions or not), no sensing noise, realism or crowd, the
+alignment rule on the commands, and none of the opt-in reward terms (the safety terms, the
+gap, intrusion and parked terms). Any other env computes them with its own code.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from boids_env.observations import KD_TREE_MIN_ROBOTS, rotation
+
+
+def fusable(env: Any) -> bool:
+    """Whether ``env``'s (a :class:`~boids_env.environment.BoidsEnv` with a live episode)
+    observations, flags and reward terms after its physics are what
+    ``_compiled.batch_after`` computes (the module doc's list)."""
+    cfg = env.episode_config
+    obs, lay = cfg.observation, env._observer.layout
+    return (cfg.world.drive != "unicycle" and cfg.scenario.robots < KD_TREE_MIN_ROBOTS
+            and not (lay.static or lay.lidar or lay.pedestrians or lay.headings or lay.route)
+            and obs.obs_noise == 0 and not obs.route_leader and obs.frame in ("world", "leader")
+            and cfg.metrics.alignment_source == "command" and env._realism is None
+            and env._people is None and not env._safety_on and not env._gap_scale
+            and not env._intrusion_scale and not env._parked_scale)
+
+
+class Fused:
+    """The constants of one fused call: which copies, where their rows go, their
+    thresholds, bounds and reward scales, and one counts array whose column blocks are the
+    fused copies' own ``_counts`` (rebound to views of it, their values kept).
+
+    Build it with :meth:`current`, which keeps it while no copy was reset."""
+
+    def __init__(self, envs: list[Any], bounds: list[int]) -> None:
+        self.member = np.array([fusable(env) for env in envs], dtype=bool)
+        self.index = np.flatnonzero(self.member).tolist()
+        self.chosen = [envs[i] for i in self.index]
+        cfgs = [env.episode_config for env in self.chosen]
+        robots = np.cumsum([0, *(c.scenario.robots for c in cfgs)])
+        layouts = [env._observer.layout for env in self.chosen]
+        self.ints = np.array([[robots[j], robots[j + 1], bounds[i],
+                               c.observation.frame == "leader", lay.neighbours,
+                               lay.neighbours_start]
+                              for j, (i, c, lay) in enumerate(zip(self.index, cfgs, layouts,
+                                                                  strict=True))],
+                             dtype=np.intp).reshape(-1, 6)
+        self.params = np.array([
+            [c.observation.horizon, c.observation.velocity_bound, env._observer.reach,
+             c.metrics.separation_threshold, c.metrics.cohesion_threshold,
+             c.metrics.alignment_threshold_deg, float(c.metrics.wrap_alignment),
+             *env._violation_scale, 0.0, 0.0, 0.0, 0.0]
+            for env, c in zip(self.chosen, cfgs, strict=True)], dtype=np.float64).reshape(-1, 14)
+        size = layouts[0].size if layouts else 0
+        self.bounds = np.array([[env._observer.space.low, env._observer.space.high]
+                                for env in self.chosen], dtype=np.float32)
+        self.bounds = self.bounds.reshape(len(self.chosen), 2, size)
+        self.rotating = np.flatnonzero(self.ints[:, 3]).tolist()
+        self.relative = [j for j, c in enumerate(cfgs) if c.observation.relative_actions]
+        self.counts = np.zeros((3, bounds[-1]), dtype=np.int64)
+        for i in self.index:
+            self.counts[:, bounds[i]:bounds[i + 1]] = envs[i]._counts
+            envs[i]._counts = self.counts[:, bounds[i]:bounds[i + 1]]
+        self.keys = [(env.episode_config, env._counts) for env in envs]
+
+    @classmethod
+    def current(cls, plan: Fused | None, envs: list[Any], bounds: list[int]) -> Fused:
+        """``plan`` if every copy has the episode config and counters it was built with
+        (no reset since), else a new one."""
+        if plan is not None and all(
+                cfg is env.episode_config and counts is env._counts
+                for (cfg, counts), env in zip(plan.keys, envs, strict=True)):
+            return plan
+        return cls(envs, bounds)
+
+    def run(self, compiled: Any, observations: npt.NDArray[np.float32],
+            terms: npt.NDArray[np.float64]) -> None:
+        """Fills the fused copies' rows of ``observations`` (rows, D) and ``terms``
+        (9, rows), and adds to their counts, in one compiled call; the leader frames turn
+        first, and relative actions keep the leader velocity each follower observed."""
+        chosen = self.chosen
+        worlds = [env._world for env in chosen]
+        for j in self.rotating:
+            observer = chosen[j]._observer
+            observer.follow(worlds[j].velocities)
+            self.params[j, 10:14] = rotation(observer.heading).ravel()
+        if len(worlds) == 1:
+            world = worlds[0]
+            positions, velocities, commanded = world.positions, world.velocities, \
+                world.commanded
+            angle = np.arctan2(commanded[:, 1], commanded[:, 0])
+        else:
+            commands = [w.commanded for w in worlds]
+            positions = np.concatenate([w.positions for w in worlds])
+            velocities = np.concatenate([w.velocities for w in worlds])
+            commanded = np.concatenate(commands)
+            # numpy's arctan2 copy by copy, as each env calls it alone (its SIMD loop's
+            # bits then never depend on a row's place in a longer array)
+            angle = np.concatenate([np.arctan2(c[:, 1], c[:, 0]) for c in commands])
+        compiled.batch_after(positions, velocities, commanded, angle, self.ints, self.params,
+                             self.bounds, self.counts, observations, terms)
+        for j in self.relative:
+            env, start = chosen[j], self.ints[j, 2]
+            block = observations[start:start + len(env.possible_agents)]
+            observer = env._observer
+            observer._leader_velocity = block[:, observer.layout.leader_velocity].astype(
+                np.float64)
