@@ -610,14 +610,10 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         velocities = world.velocities
         if headings is not None:  # what a controller reads from odometry (REP 105)
             velocities = odometry_velocities(velocities, headings)
-        observer = self._observer
-        obs = observer(world.positions, velocities, crowd, headings)
-        if self._realism is None:
-            return obs
-        obs = self._realism.observations(obs, observer.leader_hidden)
-        if observer.leader_hidden is not None:  # a stale row: the sight it was seen with
-            observer.leader_hidden = self._realism.stale.hidden
-        return obs
+        obs = self._observer(world.positions, velocities, crowd, headings)
+        # a stale row keeps the sight it was seen with (the observer's leader_hidden)
+        return obs if self._realism is None else self._realism.observations(obs,
+                                                                           self._observer)
 
     # -------------------------------------------------------------------------- queries
     @property

@@ -100,10 +100,9 @@ class SightSwitch(BatchPolicy):
                              f"last observation marked "
                              f"{'none' if hidden is None else len(hidden)} (act on the rows "
                              f"of its last observation, every follower in agent order)")
-        if not hidden.any():
-            return self.seen.act_batch(np.ascontiguousarray(obs[:, :-ROUTE_SIZE]))
-        out = self.hidden.act_batch(obs)
         if hidden.all():
-            return out
+            return self.hidden.act_batch(obs)
         seen = self.seen.act_batch(np.ascontiguousarray(obs[:, :-ROUTE_SIZE]))
-        return np.where(hidden[:, None], out, seen).astype(np.float32)
+        if not hidden.any():
+            return seen
+        return np.where(hidden[:, None], self.hidden.act_batch(obs), seen).astype(np.float32)

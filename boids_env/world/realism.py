@@ -179,11 +179,11 @@ class Realism:
         return stalled
 
     def observations(self, obs: npt.NDArray[np.float32],
-                     hidden: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
+                     observer: Any = None) -> npt.NDArray[np.float32]:
         """``obs`` with the rows of followers whose observation went stale replaced by their
-        previous one (see :class:`StaleObservations`; ``hidden`` goes stale with them, into
-        ``stale.hidden``)."""
-        return self.stale(obs, hidden)
+        previous one (see :class:`StaleObservations`; ``observer``'s sight flags go stale
+        with them)."""
+        return self.stale(obs, observer)
 
 
 STALE_STREAM = 0x57A1E
@@ -209,9 +209,11 @@ class StaleObservations:
         a stale row keeps the flag of the observation it repeats."""
 
     def __call__(self, obs: npt.NDArray[np.float32],
-                 hidden: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
-        """``obs`` with stale rows replaced; ``hidden`` (per row, e.g. the observer's
-        ``leader_hidden``) goes stale with its row, into :attr:`hidden`."""
+                 observer: Any = None) -> npt.NDArray[np.float32]:
+        """``obs`` with stale rows replaced. The ``leader_hidden`` flags of ``observer`` (the
+        :class:`~boids_env.observations.Observer` that made ``obs``), when it has them, go
+        stale with their rows: into :attr:`hidden` and back into the observer."""
+        hidden = None if observer is None else observer.leader_hidden
         if self.p > 0 and self._last is not None:
             stale = self.rng.random(len(obs)) < self.p
             obs = obs.copy()
@@ -220,4 +222,6 @@ class StaleObservations:
                 hidden = np.where(stale, self.hidden, hidden)
         self._last = obs
         self.hidden = hidden
+        if hidden is not None:
+            observer.leader_hidden = hidden
         return obs

@@ -189,9 +189,7 @@ class ControllerCore:
             crowd = Crowd(tick.crowd_positions, tick.crowd_velocities)
         obs = self.observer(tick.positions, velocities, crowd, headings)
         if self.stale is not None:
-            obs = self.stale(obs, self.observer.leader_hidden)
-            if self.observer.leader_hidden is not None:  # as the env: stale with its row
-                self.observer.leader_hidden = self.stale.hidden
+            obs = self.stale(obs, self.observer)  # its sight flags stale with their rows
         actions = self.policy.act(dict(zip(self.agents, obs, strict=True)))
         raw = np.array([actions[a] for a in self.agents], dtype=np.float64)
         filtered = (self.config.safety.safety_filter

@@ -140,6 +140,11 @@ def test_the_switch_needs_an_env_with_route_sensing_and_its_rows():
         policy.act_batch(obs[:3])
 
 
+def _seen_as(flags):
+    """An observer whose last call marked these followers as not seeing the leader."""
+    return SimpleNamespace(leader_hidden=np.array(flags))
+
+
 def test_a_stale_observation_keeps_the_sight_it_was_seen_with():
     # ROS realism repeats a follower's previous observation now and then: the switch must
     # then read that observation's sight flag too, not the current one
@@ -147,13 +152,13 @@ def test_a_stale_observation_keeps_the_sight_it_was_seen_with():
 
     stale = StaleObservations(1.0, seed=0)  # every row stale after the first call
     first = np.zeros((3, 2), dtype=np.float32)
-    stale(first, np.array([True, False, True]))
-    out = stale(first + 1, np.array([False, True, False]))
+    stale(first, _seen_as([True, False, True]))
+    out = stale(first + 1, _seen_as([False, True, False]))
     np.testing.assert_array_equal(out, first)
     assert stale.hidden.tolist() == [True, False, True]
     fresh = StaleObservations(0.0, seed=0)
-    fresh(first, np.array([True, False, True]))
-    fresh(first + 1, np.array([False, True, False]))
+    fresh(first, _seen_as([True, False, True]))
+    fresh(first + 1, _seen_as([False, True, False]))
     assert fresh.hidden.tolist() == [False, True, False]
 
 
