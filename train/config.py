@@ -121,6 +121,13 @@ class TrainConfig:
     the last ones (a sensing block added since it was trained, e.g. route sensing's 4).
     Their first-layer weights start at zero, so the resumed policy first acts exactly as
     the checkpoint did; the optimizer starts afresh."""
+    resume_new_blocks: bool = False
+    """With ``--resume``: map the checkpoint's saved observation layout into this env's
+    block by block (by name); the blocks it lacks, wherever they sit (headings, pedestrian
+    slots, route sensing), get zero first-layer weights, so the resumed policy first acts
+    exactly as the checkpoint did on a robot or crowd it never saw. Every block the
+    checkpoint reads must be in this env's layout with the same size. The optimizer starts
+    afresh."""
     # PPO.
     n_steps: int = 256
     """PPO: steps each VecEnv slot (a follower) collects per rollout."""
@@ -192,6 +199,13 @@ class TrainConfig:
                                                       -20, 5))
         _set(self, "resume_new_inputs", check_integer("resume_new_inputs",
                                                       self.resume_new_inputs, 0, 1024))
+        if not isinstance(self.resume_new_blocks, bool):
+            raise ValueError(f"resume_new_blocks must be true or false, got "
+                             f"{self.resume_new_blocks!r}")
+        if self.resume_new_blocks and self.resume_new_inputs:
+            raise ValueError("resume_new_blocks and resume_new_inputs both widen a resumed "
+                             "model's inputs: give one (resume_new_blocks maps the saved "
+                             "layout by block name)")
         for name, lo in (("batch_size", 1), ("n_steps", 1), ("n_epochs", 1), ("buffer_size", 1),
                          ("learning_starts", 0), ("train_freq", 1), ("gradient_steps", 1),
                          ("eval_every", 0), ("checkpoint_every", 0)):

@@ -50,7 +50,11 @@ def load_checkpoint(path: str | Path, config: TrainConfig, env: Any, device: str
     where = get_device(device)
     states = {name: _weights(path, f"{name}.pth", where) for name in names}
     exact = True
-    if config.resume_new_inputs:
+    if config.resume_new_blocks:
+        states = {"policy": _mapped(path, states.get("policy"), _saved_layout(path),
+                                    _layout(config))}
+        exact = False  # the optimizer starts afresh: its moments are of the narrower network
+    elif config.resume_new_inputs:
         states = {"policy": _widened(path, states.get("policy"), config.resume_new_inputs,
                                      model.observation_space.shape[0])}
         exact = False  # the optimizer starts afresh: its moments are of the narrower network
@@ -96,6 +100,72 @@ def _widened(path: str | Path, policy: Any, new: int, size: int) -> dict[str, An
         raise ValueError(f"resume_new_inputs={new}: checkpoint {path} has no first layer of "
                          f"{old} inputs (this env's {size} observation values less {new}); "
                          f"its layers read {widths}")
+    return out
+
+
+def _layout(config: TrainConfig) -> Any:
+    from boids_env.config import EnvConfig
+    from boids_env.observations import layout_of
+
+    return layout_of(EnvConfig.from_kwargs(**config.env_fields))
+
+
+def _saved_layout(path: str | Path) -> Any:
+    """The observation layout a checkpoint's ``boids.json`` says its network reads."""
+    from boids_env.observations import ObservationLayout
+    from boids_env.policies.sb3_policy import read_meta
+
+    blocks = read_meta(path).get("observation_layout")
+    if blocks is None:
+        raise ValueError(f"resume_new_blocks: checkpoint {path} has no saved observation "
+                         f"layout (a model of boids train saves one): use resume_new_inputs")
+    try:
+        return ObservationLayout.from_blocks(blocks)
+    except ValueError as exc:
+        raise ValueError(f"resume_new_blocks: checkpoint {path}: {exc}") from None
+
+
+def check_blocks(path: str | Path, old: Any, new: Any) -> None:
+    """``ValueError`` unless every block of layout ``old`` is in ``new`` with its size."""
+    ours = dict(new.blocks)
+    wrong = {name: (size, ours.get(name)) for name, size in old.blocks
+             if ours.get(name) != size}
+    if wrong:
+        raise ValueError(f"resume_new_blocks: checkpoint {path} reads blocks this env's "
+                         f"observation lacks or sizes otherwise (block: (checkpoint, env)): "
+                         f"{wrong}; env_fields must keep every block it was trained on "
+                         f"(same neighbours, static slots, lidar rays, pedestrian slots)")
+
+
+def checked_layouts(path: str | Path, config: TrainConfig) -> None:
+    """Refuses, before anything is written, a ``resume_new_blocks`` checkpoint whose saved
+    layout does not fit this config's env."""
+    check_blocks(path, _saved_layout(path), _layout(config))
+
+
+def _mapped(path: str | Path, policy: Any, old: Any, new: Any) -> dict[str, Any]:
+    """The policy state dict of a checkpoint whose network reads layout ``old``, for an env
+    of layout ``new``: each first layer's columns move to their block's place in ``new``,
+    and the columns of blocks ``old`` lacks are zero (so the network computes what the
+    checkpoint did on the blocks it knows, whatever the new ones hold)."""
+    import torch
+
+    if not isinstance(policy, dict):
+        raise ValueError(f"checkpoint {path}: its policy.pth is not a table of weights")
+    check_blocks(path, old, new)
+    out, widened = {}, 0
+    for name, tensor in policy.items():
+        if (isinstance(tensor, torch.Tensor) and tensor.ndim == 2
+                and name.endswith(".0.weight") and tensor.shape[1] == old.size):
+            wide = tensor.new_zeros((tensor.shape[0], new.size))
+            for block, _ in old.blocks:
+                wide[:, new.block(block)] = tensor[:, old.block(block)]
+            tensor = wide
+            widened += 1
+        out[name] = tensor
+    if not widened:
+        raise ValueError(f"resume_new_blocks: checkpoint {path} has no first layer of "
+                         f"{old.size} inputs (its saved layout's size)")
     return out
 
 

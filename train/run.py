@@ -130,7 +130,7 @@ DATA_LIMIT = 16 << 20
 """The most bytes a checkpoint's SB3 ``data`` entry may hold when its timesteps are read
 (SB3 writes a few hundred kB)."""
 RESUME_FREE = ("total_timesteps", "processes", "torch_threads", "device", "resume_log_std",
-               "resume_new_inputs")
+               "resume_new_inputs", "resume_new_blocks")
 """Config fields that do not make another training: a resume may change them."""
 
 
@@ -175,9 +175,10 @@ def check_resume(config: TrainConfig, out: Path, resume: str | Path | None,
         if config.resume_log_std is not None:
             raise ValueError("resume_log_std is set but no checkpoint is resumed: it resets the "
                              "exploration of a trained model (give --resume CHECKPOINT.zip)")
-        if config.resume_new_inputs:
-            raise ValueError("resume_new_inputs is set but no checkpoint is resumed: it widens "
-                             "a trained model's inputs (give --resume CHECKPOINT.zip)")
+        for name in ("resume_new_inputs", "resume_new_blocks"):
+            if getattr(config, name):
+                raise ValueError(f"{name} is set but no checkpoint is resumed: it widens "
+                                 "a trained model's inputs (give --resume CHECKPOINT.zip)")
         return
     if not Path(resume).is_file():
         raise FileNotFoundError(f"checkpoint to resume not found: {resume}")
@@ -198,6 +199,10 @@ def check_resume(config: TrainConfig, out: Path, resume: str | Path | None,
     if saved != config.algorithm:
         raise ValueError(f"checkpoint {resume} was trained with {saved}, the config says "
                          f"algorithm={config.algorithm!r}")
+    if config.resume_new_blocks:
+        from boids_env.train.resume import checked_layouts
+
+        checked_layouts(resume, config)
     if overwrite and Path(resume).resolve().is_relative_to(out.resolve()):
         raise ValueError(f"--resume {resume} is inside --out {out}, which --overwrite would "
                          f"empty first: copy the checkpoint elsewhere, or choose another --out")

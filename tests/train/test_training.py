@@ -200,6 +200,51 @@ def test_a_short_training_says_how_it_goes_and_evaluates_its_final_model(tmp_pat
     assert (tmp_path / "c.png").is_file()
 
 
+def test_resume_new_blocks_maps_a_model_onto_a_robot_with_headings(tmp_path):
+    """A holonomic model resumed on a TurtleBot3 with route sensing: its heading blocks sit
+    between the study's blocks and the route block, so the columns move by block name; the
+    resumed policy acts as the old one did whatever the new blocks hold."""
+    from boids_env.train.resume import load_checkpoint
+    from boids_env.train.run import make_vec_env
+
+    arena = {"max_cycles": 30, "neighbours": 4, "route_sensing": True}
+    first = train(TrainConfig(**{**TINY, "env_fields": arena}, seed=1), tmp_path / "first")
+    turtle = TrainConfig(**{**TINY, "total_timesteps": 2400, "resume_new_blocks": True,
+                            "env_fields": {**arena, "robot": "turtlebot3_burger"}})
+    venv = make_vec_env(turtle)
+    try:
+        model = load_checkpoint(first, turtle, venv, "cpu", str(tmp_path / "tb"))
+    finally:
+        venv.close()
+    old = SB3Policy.load(first, trust=True)
+    rng = np.random.default_rng(0)
+    study = rng.normal(size=(6, 26)).astype(np.float32)   # 2+2+2 + 4 slots of 5
+    route = rng.normal(size=(6, 4)).astype(np.float32)
+    headings = rng.normal(size=(6, 12)).astype(np.float32)  # own, leader, 4 neighbours
+    widened = SB3Policy(model, turtle.env_fields)
+    assert widened.obs_size == 42
+    # Compare the deterministic means (the TurtleBot3's action bounds clip otherwise).
+    import torch
+
+    def mean(policy, obs):
+        with torch.no_grad():
+            return policy.model.policy.get_distribution(
+                torch.as_tensor(obs)).distribution.mean.numpy()
+
+    np.testing.assert_array_equal(mean(widened, np.hstack([study, headings, route])),
+                                  mean(old, np.hstack([study, route])))
+    path = train(turtle, tmp_path / "turtle", resume=first)
+    assert read_meta(path)["observation_layout"][-2] == ["neighbour_headings", 8]
+    # a checkpoint block the env lacks is refused before anything is written
+    bare = turtle.replace(env_fields={"max_cycles": 30, "neighbours": 4,
+                                      "robot": "turtlebot3_burger"})
+    with pytest.raises(ValueError, match=r"resume_new_blocks: .* \{'route': \(4, None\)\}"):
+        train(bare, tmp_path / "bad", resume=first)
+    assert not (tmp_path / "bad").exists()
+    with pytest.raises(ValueError, match="resume_new_blocks and resume_new_inputs"):
+        turtle.replace(resume_new_inputs=4)
+
+
 def test_resume_new_inputs_widens_a_model_that_first_acts_as_before(tmp_path):
     """A model trained without route sensing resumed with its 4 inputs: the new first-layer
     columns start at zero, so the widened policy's actions equal the old one's."""
