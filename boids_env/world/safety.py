@@ -49,6 +49,9 @@ if TYPE_CHECKING:
 
 FloatArray = npt.NDArray[np.float64]
 
+PEOPLE_ROWS = 4
+"""People (a person leading, pedestrians) that constrain each follower: the nearest ones
+within reach."""
 STATIC_POINTS = 4
 """Surface points of static geometry per follower: the nearest in up to four directions
 more than 45° apart (a corridor's two walls, a corner's two sides)."""
@@ -80,6 +83,12 @@ class SafetyConfig:
     safety_neighbours: int = 6
     """The nearest robots within ``safety_range`` that constrain a follower (the leader
     included)."""
+    safety_person_distance: float = 0.0
+    """Centre distance (m) the filter keeps (plus ``safety_margin``) between a follower and
+    a person (a person leading, a pedestrian) where it exceeds their bodies'
+    (``person_radius`` + the robot's radius): 0.45 keeps robots out of Hall's intimate
+    zone as far as they can (a person who walks at one still gets there). 0: their bodies,
+    as for robots."""
 
     def __post_init__(self) -> None:
         _set(self, "safety_filter", _flag("safety_filter", self.safety_filter))
@@ -91,11 +100,15 @@ class SafetyConfig:
                                            lo_open=True, unit="m"))
         _set(self, "safety_neighbours", _integer("safety_neighbours", self.safety_neighbours,
                                                  0, 64))
+        _set(self, "safety_person_distance", _number("safety_person_distance",
+                                                     self.safety_person_distance, 0.0, 3.0,
+                                                     unit="m"))
 
 
 def barrier_constraints(positions: FloatArray, velocities: FloatArray,
                         leader_velocity: FloatArray, radius: float, config: SafetyConfig,
                         surfaces: FloatArray, surface_valid: FloatArray,
+                        leader_row: bool = True,
                         ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
     """The half-planes a·v ≤ b of every follower's command.
 
@@ -107,6 +120,8 @@ def barrier_constraints(positions: FloatArray, velocities: FloatArray,
         config: the filter's parameters.
         surfaces: (F, M, 2) offsets from each follower to surface points (m).
         surface_valid: (F, M) which of them exist.
+        leader_row: whether the leader is a robot row (False: a person leads, whose wider
+            row :func:`people_constraints` gives).
 
     Returns:
         ``(a (F, K, 2), b (F, K), hard (F, K))``: unit normals towards each obstacle or robot,
@@ -121,7 +136,7 @@ def barrier_constraints(positions: FloatArray, velocities: FloatArray,
     b_s = np.where(ok_s, alpha * (dist_s - radius - margin), _FREE)
 
     index, dist_r = _neighbours(positions, config.safety_range, config.safety_neighbours)
-    ok_r = index >= 0
+    ok_r = index >= 0 if leader_row else index > 0
     other = positions[np.where(ok_r, index, 0)]
     offset = other - positions[1:, None, :]
     safe_r = np.where(ok_r, dist_r, 1.0)
@@ -225,17 +240,58 @@ def _solve(commands: FloatArray, a: FloatArray, b: FloatArray, excess: FloatArra
     return candidates[np.arange(f), pick]
 
 
+@dataclass(frozen=True)
+class People:
+    """The people the filter keeps the followers off: positions (P, 2), their velocities
+    this step (P, 2, m/s) and their body radius (m). A person leading is one of them (first)
+    and then not a robot row."""
+
+    positions: FloatArray
+    velocities: FloatArray
+    radius: float
+    person_leads: bool = False
+
+
+def people_constraints(followers: FloatArray, people: People, radius: float,
+                       config: SafetyConfig) -> tuple[FloatArray, FloatArray]:
+    """The half-planes of the :data:`PEOPLE_ROWS` nearest people within reach of each
+    follower (F, 2): n·v ≤ α·(d − keep) + n·v_person, keep ``safety_margin`` beyond the
+    larger of ``safety_person_distance`` and the bodies' centre distance, reach
+    ``safety_range`` plus what keep adds to a robot pair's. ``(a (F, R, 2), b (F, R))``."""
+    keep = max(config.safety_person_distance, people.radius + radius) + config.safety_margin
+    reach = config.safety_range + keep - 2.0 * radius - config.safety_margin
+    f, k = len(followers), PEOPLE_ROWS
+    a, b = np.zeros((f, k, 2)), np.full((f, k), _FREE)
+    if not len(people.positions) or not f:
+        return a, b
+    offset = people.positions[None, :, :] - followers[:, None, :]
+    dist = np.sqrt(offset[..., 0] ** 2 + offset[..., 1] ** 2)
+    order = np.argsort(dist, axis=1, kind="stable")[:, :k]
+    dist = np.take_along_axis(dist, order, axis=1)
+    offset = np.take_along_axis(offset, order[..., None], axis=1)
+    velocity = people.velocities[order]
+    ok = (dist > 0.0) & (dist <= reach)
+    safe = np.where(ok, dist, 1.0)
+    n = np.where(ok[..., None], offset / safe[..., None], 0.0)
+    bound = config.safety_gain * (dist - keep) + n[..., 0] * velocity[..., 0] \
+        + n[..., 1] * velocity[..., 1]
+    used = order.shape[1]
+    a[:, :used], b[:, :used] = n, np.where(ok, bound, _FREE)
+    return a, b
+
+
 def filter_commands(commands: FloatArray, positions: FloatArray, velocities: FloatArray,
                     leader_velocity: FloatArray, radius: float, max_speed: float, scene: Scene,
-                    config: SafetyConfig) -> FloatArray:
+                    config: SafetyConfig, people: People | None = None) -> FloatArray:
     """The followers' commands (F, 2, world frame, m/s) filtered for the robots at
     ``positions`` moving at ``velocities`` (N, 2, the leader first) in ``scene``, with the
     leader commanding ``leader_velocity`` (2,) this step; speeds stay within
-    ``max_speed``."""
+    ``max_speed``. ``people``: a person leading and pedestrians, kept off as wider discs
+    (:func:`people_constraints`); the leader is then not a robot row."""
     surfaces, valid = scene.nearest_points(positions[1:], STATIC_POINTS,
                                            config.safety_range)
     compiled = kernels.compiled()
-    if compiled is not None and len(positions) < COMPILED_BELOW:
+    if compiled is not None and len(positions) < COMPILED_BELOW and people is None:
         # the same bits in one loop; it declines (status 1) where the KD-tree's order on
         # exact ties or its bound decide, and the numpy code below runs
         status, out = compiled.safety_filter(
@@ -247,8 +303,14 @@ def filter_commands(commands: FloatArray, positions: FloatArray, velocities: Flo
             config.safety_neighbours, surfaces, valid)
         if status == 0:
             return clip_speed(out, max_speed)
+    leads = people is not None and people.person_leads
     a, b, hard = barrier_constraints(positions, velocities,
                                      np.asarray(leader_velocity, dtype=float), radius, config,
-                                     surfaces, valid)
+                                     surfaces, valid, leader_row=not leads)
+    if people is not None:
+        a_p, b_p = people_constraints(positions[1:], people, radius, config)
+        a = np.concatenate([a, a_p], axis=1)
+        b = np.concatenate([b, b_p], axis=1)
+        hard = np.concatenate([hard, np.ones(b_p.shape, dtype=bool)], axis=1)
     return clip_speed(nearest_allowed(np.asarray(commands, dtype=float), a, b, hard),
                       max_speed)

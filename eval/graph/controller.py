@@ -27,7 +27,7 @@ from boids_env.policies.registry import load_policy, split_preset
 from boids_env.vectors import clip_speed
 from boids_env.world.realism import StaleObservations
 from boids_env.world.robots import make_model, quaternion_headings, to_world
-from boids_env.world.safety import filter_commands
+from boids_env.world.safety import People, filter_commands
 from boids_env.world.scenario import holding
 
 SYNC_MODES = ("stamp", "rate")
@@ -222,14 +222,18 @@ class ControllerCore:
         speed-limited world-frame commands (held still during the start-up hold), filtered
         against every robot's odometry and the scene, then, for robots with a heading, the
         driver's law. The leader's odometry velocity stands for the leader's command, which
-        the in-process env knows and a controller node does not."""
+        the in-process env knows and a controller node does not. A person leading is kept
+        off as the env keeps it (its own radius); a crowd the node does not see."""
         w = self.config.world
         world = clip_speed(self.observer.to_world(raw), w.max_speed)
         if self._holding(tick.stamp_ns):
             world = np.zeros_like(world)
+        sc = self.config.scenario
+        person = None if sc.leader == "robot" else People(
+            tick.positions[:1], velocities[:1], sc.person_radius, person_leads=True)
         world = filter_commands(world, tick.positions, velocities, velocities[0],
                                 w.robot_radius, w.max_speed, self.config.scene,
-                                self.config.safety)
+                                self.config.safety, person)
         return world if headings is None else self.model.native(world, headings[1:])
 
     def world_forces(self) -> dict[str, np.ndarray]:

@@ -123,3 +123,75 @@ def test_the_filter_is_off_by_default_deterministic_and_checked():
         parallel_env(safety_gain=0.0)
     with pytest.raises(ValueError, match="safety_filter must be"):
         parallel_env(safety_filter="yes")
+
+
+def test_people_constraints_of_a_person_and_a_pedestrian():
+    """A follower (radius 0.036 m) at the origin; a person (radius 0.22 m) 0.4 m east walking
+    west at 0.3 m/s; a pedestrian 0.6 m north standing; another 2 m away, beyond reach.
+    Bodies: 0.256 m between centres; kept: 0.45 m, plus the 0.03 m margin."""
+    from boids_env.world.safety import People, people_constraints
+
+    people = People(np.array([[0.4, 0.0], [0.0, 0.6], [2.0, 0.0]]),
+                    np.array([[-0.3, 0.0], [0.0, 0.0], [0.0, 0.0]]), 0.22, person_leads=True)
+    bodies = SafetyConfig(safety_filter=True, safety_margin=0.03, safety_gain=2.0,
+                          safety_range=0.5)
+    a, b = people_constraints(np.zeros((1, 2)), people, 0.036, bodies)
+    # reach: 0.5 + (0.256 - 0.072) = 0.684 m, so the person and the pedestrian, nearest first
+    np.testing.assert_allclose(a[0, :2], [[1.0, 0.0], [0.0, 1.0]], atol=1e-15)
+    np.testing.assert_allclose(b[0, :2], [2 * (0.4 - 0.256 - 0.03) - 0.3,
+                                          2 * (0.6 - 0.256 - 0.03)], atol=1e-12)
+    assert (a[0, 2:] == 0).all() and (b[0, 2:] == FREE).all()
+    zone = SafetyConfig(safety_filter=True, safety_margin=0.03, safety_gain=2.0,
+                        safety_range=0.5, safety_person_distance=0.45)
+    a, b = people_constraints(np.zeros((1, 2)), people, 0.036, zone)
+    # reach 0.5 + (0.45 - 0.072) = 0.878 m; the person is already inside 0.48 m: back off
+    np.testing.assert_allclose(b[0, :2], [2 * (0.4 - 0.48) - 0.3, 2 * (0.6 - 0.48)],
+                               atol=1e-12)
+
+
+def _person_run(filtered, steps=120, **fields):
+    """Followers driven at full speed at the person leading (or, with a crowd, at the
+    nearest pedestrian): the nearest centre distance to a person each follower-step."""
+    env = parallel_env(leader="person", safety_filter=filtered, startup_time=100.0,
+                       robots=7, **fields)
+    env.reset(seed=2)
+    nearest = []
+    for _ in range(steps):
+        world = env.unwrapped._world
+        people = np.concatenate([world.positions[:1], world.pedestrian_positions])
+        target = people[0] if not len(world.pedestrian_positions) else None
+        actions = {}
+        for k, agent in enumerate(env.agents):
+            p = world.positions[k + 1]
+            goal = target if target is not None else world.pedestrian_positions[
+                np.argmin(np.linalg.norm(world.pedestrian_positions - p, axis=1))]
+            offset = goal - p  # world-frame actions (the default frame)
+            actions[agent] = 0.5 * offset / np.linalg.norm(offset)
+        env.step(actions)
+        world = env.unwrapped._world
+        people = np.concatenate([world.positions[:1], world.pedestrian_positions])
+        d = np.linalg.norm(world.positions[1:, None] - people[None], axis=2)
+        nearest.append(d.min(axis=1))
+    return np.array(nearest)
+
+
+def test_a_person_leading_is_kept_off_at_its_own_width():
+    """The filter used to keep a person leading off as if it were a robot (0.072 m between
+    centres instead of 0.256 m), so followers drove into it."""
+    bodies = 0.22 + 0.036
+    assert _person_run(False).min() < bodies, "unfiltered, they reach the person"
+    assert _person_run(True).min() > bodies
+    near = _person_run(True, safety_person_distance=0.45)
+    assert near.min() > 0.45 - 0.01, near.min()
+
+
+def test_pedestrians_are_kept_off_as_far_as_the_robots_can():
+    """Followers driven at their nearest pedestrian among 6: unfiltered they are in contact
+    with a person 9 % of the follower-steps; the filter, which now keeps pedestrians off too,
+    cuts that (pedestrians still walk into robots) and halves the time inside 0.45 m."""
+    bodies = 0.22 + 0.036
+    free = _person_run(False, crowd=6)
+    kept = _person_run(True, crowd=6, safety_person_distance=0.45)
+    assert (free < bodies).mean() > 0.05
+    assert (kept < bodies).mean() < 0.3 * (free < bodies).mean()
+    assert (kept < 0.45).mean() < 0.6 * (free < 0.45).mean()
