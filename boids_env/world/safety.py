@@ -85,10 +85,11 @@ class SafetyConfig:
     included)."""
     safety_person_distance: float = 0.0
     """Centre distance (m) the filter keeps (plus ``safety_margin``) between a follower and
-    a person (a person leading, a pedestrian) where it exceeds their bodies'
-    (``person_radius`` + the robot's radius): 0.45 keeps robots out of Hall's intimate
-    zone as far as they can (a person who walks at one still gets there). 0: their bodies,
-    as for robots."""
+    a person leading where it exceeds their bodies' (``person_radius`` + the robot's
+    radius): 0.45 keeps robots out of the person's intimate zone (Hall) as far as they can
+    (a person who walks at one still gets there). 0: their bodies, as for robots."""
+    safety_pedestrian_distance: float = 0.0
+    """The same for each pedestrian of a crowd (0: their bodies)."""
 
     def __post_init__(self) -> None:
         _set(self, "safety_filter", _flag("safety_filter", self.safety_filter))
@@ -100,9 +101,8 @@ class SafetyConfig:
                                            lo_open=True, unit="m"))
         _set(self, "safety_neighbours", _integer("safety_neighbours", self.safety_neighbours,
                                                  0, 64))
-        _set(self, "safety_person_distance", _number("safety_person_distance",
-                                                     self.safety_person_distance, 0.0, 3.0,
-                                                     unit="m"))
+        for name in ("safety_person_distance", "safety_pedestrian_distance"):
+            _set(self, name, _number(name, getattr(self, name), 0.0, 3.0, unit="m"))
 
 
 def barrier_constraints(positions: FloatArray, velocities: FloatArray,
@@ -256,10 +256,14 @@ def people_constraints(followers: FloatArray, people: People, radius: float,
                        config: SafetyConfig) -> tuple[FloatArray, FloatArray]:
     """The half-planes of the :data:`PEOPLE_ROWS` nearest people within reach of each
     follower (F, 2): n·v ≤ α·(d − keep) + n·v_person, keep ``safety_margin`` beyond the
-    larger of ``safety_person_distance`` and the bodies' centre distance, reach
-    ``safety_range`` plus what keep adds to a robot pair's. ``(a (F, R, 2), b (F, R))``."""
-    keep = max(config.safety_person_distance, people.radius + radius) + config.safety_margin
-    reach = config.safety_range + keep - 2.0 * radius - config.safety_margin
+    larger of the bodies' centre distance and ``safety_person_distance`` (a person leading)
+    or ``safety_pedestrian_distance`` (a pedestrian), reach ``safety_range`` plus what keep
+    adds to a robot pair's. ``(a (F, R, 2), b (F, R))``."""
+    bodies = people.radius + radius
+    keep = np.full(len(people.positions),
+                   max(config.safety_pedestrian_distance, bodies) + config.safety_margin)
+    if people.person_leads and len(keep):
+        keep[0] = max(config.safety_person_distance, bodies) + config.safety_margin
     f, k = len(followers), PEOPLE_ROWS
     a, b = np.zeros((f, k, 2)), np.full((f, k), _FREE)
     if not len(people.positions) or not f:
@@ -269,11 +273,12 @@ def people_constraints(followers: FloatArray, people: People, radius: float,
     order = np.argsort(dist, axis=1, kind="stable")[:, :k]
     dist = np.take_along_axis(dist, order, axis=1)
     offset = np.take_along_axis(offset, order[..., None], axis=1)
-    velocity = people.velocities[order]
+    velocity, kept = people.velocities[order], keep[order]
+    reach = config.safety_range + kept - 2.0 * radius - config.safety_margin
     ok = (dist > 0.0) & (dist <= reach)
     safe = np.where(ok, dist, 1.0)
     n = np.where(ok[..., None], offset / safe[..., None], 0.0)
-    bound = config.safety_gain * (dist - keep) + n[..., 0] * velocity[..., 0] \
+    bound = config.safety_gain * (dist - kept) + n[..., 0] * velocity[..., 0] \
         + n[..., 1] * velocity[..., 1]
     used = order.shape[1]
     a[:, :used], b[:, :used] = n, np.where(ok, bound, _FREE)

@@ -144,9 +144,19 @@ def test_people_constraints_of_a_person_and_a_pedestrian():
     zone = SafetyConfig(safety_filter=True, safety_margin=0.03, safety_gain=2.0,
                         safety_range=0.5, safety_person_distance=0.45)
     a, b = people_constraints(np.zeros((1, 2)), people, 0.036, zone)
-    # reach 0.5 + (0.45 - 0.072) = 0.878 m; the person is already inside 0.48 m: back off
-    np.testing.assert_allclose(b[0, :2], [2 * (0.4 - 0.48) - 0.3, 2 * (0.6 - 0.48)],
+    # the person leading: kept 0.48 m off, and already inside: back off; the pedestrian
+    # at its body's distance
+    np.testing.assert_allclose(b[0, :2], [2 * (0.4 - 0.48) - 0.3, 2 * (0.6 - 0.256 - 0.03)],
                                atol=1e-12)
+    both = SafetyConfig(safety_filter=True, safety_margin=0.03, safety_gain=2.0,
+                        safety_range=0.5, safety_person_distance=0.45,
+                        safety_pedestrian_distance=0.7)
+    a, b = people_constraints(np.zeros((1, 2)), people, 0.036, both)
+    np.testing.assert_allclose(b[0, :2], [2 * (0.4 - 0.48) - 0.3, 2 * (0.6 - 0.73)],
+                               atol=1e-12)
+    # a pedestrian beyond reach (0.5 + 0.7 - 0.072 = 1.128 m) is no row
+    far = People(np.array([[1.2, 0.0]]), np.zeros((1, 2)), 0.22)
+    assert (people_constraints(np.zeros((1, 2)), far, 0.036, both)[1] == FREE).all()
 
 
 def _person_run(filtered, steps=120, **fields):
@@ -191,7 +201,7 @@ def test_pedestrians_are_kept_off_as_far_as_the_robots_can():
     cuts that (pedestrians still walk into robots) and halves the time inside 0.45 m."""
     bodies = 0.22 + 0.036
     free = _person_run(False, crowd=6)
-    kept = _person_run(True, crowd=6, safety_person_distance=0.45)
+    kept = _person_run(True, crowd=6, safety_pedestrian_distance=0.45)
     assert (free < bodies).mean() > 0.05
     assert (kept < bodies).mean() < 0.3 * (free < bodies).mean()
     assert (kept < 0.45).mean() < 0.6 * (free < 0.45).mean()
