@@ -25,7 +25,9 @@ TRUST_HELP = ("load a model .zip through Stable-Baselines3's own load, which unp
 POLICY_HELP = ("reynolds (default), reynolds@boids_ros or reynolds@proxemic (a preset), "
                "random, learned (the shipped PPO followers), learned-study (PPO on the study's "
                "reward alone), learned-person (PPO following a person), learned-scenes (the "
-               "followers for a lab: walls, obstacles, standstills, the safety filter), an SB3 "
+               "followers for a lab: walls, obstacles, standstills, the safety filter), "
+               "learned-buildings (floor plans, by route), learned-crowd (a person through "
+               "buildings among pedestrians), an SB3 "
                "model .zip, or module:object (a Policy instance, class or factory)")
 
 
@@ -377,7 +379,8 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                    "person (a person leading: speed, group size, crowd), "
                    "robot_types (the study's experiment for every robot preset), "
                    "robots_buildings and crowd_buildings (larger robots and crowds on the "
-                   "square and held-out floor plans), or a TOML file")
+                   "square and held-out floor plans), person_buildings (a person leading "
+                   "through them among pedestrians), or a TOML file")
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=None, help="seeds 0..N-1 (suite's: 5)")
     seeds.add_argument("--blocks", type=int, default=None, metavar="K",

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from boids_env.config import EnvConfig
 
 BUILTIN = ("reynolds", "random", "learned", "learned-study", "learned-person",
-           "learned-scenes", "learned-buildings")
+           "learned-scenes", "learned-buildings", "learned-crowd")
 LEARNED_MODEL = Path(__file__).parent / "models" / "ppo_safe.zip"
 """The shipped PPO follower policy (recipes ``ppo_safe`` then ``ppo_safe_stage2``: leader frame,
 actions relative to the leader's velocity, safe reward with the cohesion gap, varied paths,
@@ -43,9 +43,14 @@ BUILDINGS_MODEL = Path(__file__).parent / "models" / "ppo_buildings.zip"
 arena, doorway, corridor and pillars): a follower that does not see the leader reads it
 along its route (``route_leader``); its env fields switch route sensing and the safety
 filter on."""
+CROWD_MODEL = Path(__file__).parent / "models" / "ppo_crowd.zip"
+"""The shipped followers of a person walking through buildings among pedestrians (recipe
+``ppo_crowd``: the route model of ``learned-buildings`` widened by 4 pedestrian slots and
+trained on with a person leading and crowds of 0-12); its env fields switch route sensing
+and the safety filter on, the filter keeping people 0.45 m off (Hall's intimate zone)."""
 MODELS = {"learned": LEARNED_MODEL, "learned-study": STUDY_MODEL,
           "learned-person": PERSON_MODEL, "learned-scenes": SCENES_MODEL,
-          "learned-buildings": BUILDINGS_MODEL}
+          "learned-buildings": BUILDINGS_MODEL, "learned-crowd": CROWD_MODEL}
 SIGHT_SWITCHED = {"learned-buildings": "learned-scenes"}
 """Shipped names that act as a :class:`~boids_env.policies.sight_switch.SightSwitch`: the
 followers that see the leader act with the model named here, the others with the name's own

@@ -54,6 +54,10 @@ _SCENES_TABLE = (f"{PAGE}, 'Learned followers for a lab: learned-scenes', Result
 _PERSON_TABLE = (f"{PAGE}, 'A learned policy for following a person: learned-person', its "
                  f"table (boids eval --suite person_learned, 13 robots, seeds 0-4, means)")
 
+_CROWD_TABLE = ("docs/how-to/people.md, 'Following a person through buildings among "
+                "pedestrians: learned-crowd' (boids eval --suite person_buildings, 13 robots, "
+                "seeds 0-4, means; lost summed; intimate: time in the person's intimate zone)")
+
 _BUILDINGS_TABLE = ("docs/how-to/buildings.md, 'The learned follower: learned-buildings' "
                     "(boids eval --suite buildings, 13 robots, seeds 0-4, means; lost: "
                     "followers > 3 m from the leader at the end, summed)")
@@ -138,6 +142,25 @@ SHIPPED: dict[str, dict[str, Any]] = {
             ("ROS realism, plans 1000-1002", _f(9.63, 0.0, 0.0, lost=2))])
         + _cases("open floor", _BUILDINGS_TABLE, [
             ("the study's default case", _f(0.890, 0.0016, 0.0, lost=0))]),
+    },
+    "learned-crowd": {
+        "summary": "a person walking through buildings (generated floor plans, the open "
+                   "arena, doorways) among up to 12 pedestrians, with route sensing, 4 "
+                   "pedestrian slots and the safety filter keeping robots out of the "
+                   "person's intimate zone (0.45 m); pedestrians still come closer than "
+                   "reynolds@proxemic lets them (its pedestrian intimate time is 2-7 x)",
+        "recipe": "ppo_crowd (seed 0, 1.25 M steps on learned-buildings' route model)",
+        "validation": _cases("person_buildings", _CROWD_TABLE, [
+            ("square, crowd 8", _f(2.518, 0.0, 0.0, lost=0, intimate=0.00458,
+                                   pedestrian_intimate=0.0774)),
+            ("floorplan 1004, crowd 8", _f(9.727, 0.00864, 0.0, lost=0, intimate=0.00135,
+                                           pedestrian_intimate=0.2587)),
+            ("floorplan 1011, crowd 8", _f(8.718, 0.00405, 0.0, lost=0, intimate=0.00184,
+                                           pedestrian_intimate=0.1532)),
+            ("floorplan 1016, crowd 8", _f(8.118, 0.00405, 0.0, lost=0, intimate=0.00437,
+                                           pedestrian_intimate=0.1050)),
+            ("floorplan 1004, crowd 12", _f(9.667, 0.01188, 0.0, lost=0, intimate=0.00078,
+                                            pedestrian_intimate=0.3104))]),
     },
 }
 """What each shipped model's measurements add to the card its training config gives. A new
