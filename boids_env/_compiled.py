@@ -48,6 +48,112 @@ def nearest(positions, horizon, k):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _grid(positions, horizon):  # pragma: no cover - compiled
+    """The robots sorted into cells a little wider than ``horizon`` (two robots within it
+    are never two cells apart, whatever the rounding of the cell coordinates), doubled
+    until there are at most 4n + 16: each robot's cell ``(cx, cy)``, the grid's width
+    ``nx`` and height, each cell's first entry ``start`` in ``members`` (robot indices in
+    cell order) and their coordinates in that order."""
+    n = positions.shape[0]
+    x0 = positions[:, 0].min()
+    y0 = positions[:, 1].min()
+    width = positions[:, 0].max() - x0
+    height = positions[:, 1].max() - y0
+    cell = horizon * (1.0 + 1e-9)
+    while (width / cell + 1.0) * (height / cell + 1.0) > 4.0 * n + 16.0:
+        cell *= 2.0
+    nx = int(width / cell) + 1
+    ny = int(height / cell) + 1
+    cx = np.empty(n, dtype=np.intp)
+    cy = np.empty(n, dtype=np.intp)
+    start = np.zeros(nx * ny + 1, dtype=np.intp)
+    for j in range(n):
+        cx[j] = min(int((positions[j, 0] - x0) / cell), nx - 1)
+        cy[j] = min(int((positions[j, 1] - y0) / cell), ny - 1)
+        start[cy[j] * nx + cx[j] + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    members = np.empty(n, dtype=np.intp)
+    fill = start[:-1].copy()
+    for j in range(n):
+        c = cy[j] * nx + cx[j]
+        members[fill[c]] = j
+        fill[c] += 1
+    sorted_xy = np.empty((n, 2))
+    for m in range(n):
+        sorted_xy[m, 0] = positions[members[m], 0]
+        sorted_xy[m, 1] = positions[members[m], 1]
+    return cx, cy, nx, ny, start, members, sorted_xy
+
+
+@njit(cache=True)
+def _grid_scan(r, px, py, horizon, cx, cy, nx, ny, start, members, xy, kept_d,
+               kept_j):  # pragma: no cover - compiled
+    """Robot ``r``'s nearest robots within ``horizon`` (at most ``len(kept_d)``), sorted by
+    distance into ``kept_d`` and ``kept_j``: their count, or -1 for another robot exactly on
+    it."""
+    size = kept_d.shape[0]
+    far = horizon * horizon * (1.0 + 1e-9)  # beyond the horizon whatever the rounding
+    count = 0
+    for gy in range(max(cy[r] - 1, 0), min(cy[r] + 2, ny)):
+        for gx in range(max(cx[r] - 1, 0), min(cx[r] + 2, nx)):
+            c = gy * nx + gx
+            for m in range(start[c], start[c + 1]):
+                dx = px - xy[m, 0]
+                dy = py - xy[m, 1]
+                s2 = dx * dx + dy * dy
+                if s2 > far:
+                    continue
+                d = math.sqrt(s2)
+                if d <= 0.0:
+                    if members[m] != r:
+                        return -1
+                    continue
+                if d > horizon or (count == size and not d < kept_d[size - 1]):
+                    continue
+                q = count if count < size else size - 1
+                while q > 0 and kept_d[q - 1] > d:
+                    kept_d[q] = kept_d[q - 1]
+                    kept_j[q] = kept_j[q - 1]
+                    q -= 1
+                kept_d[q] = d
+                kept_j[q] = members[m]
+                if count < size:
+                    count += 1
+    return count
+
+
+@njit(cache=True)
+def nearest_grid(positions, horizon, k):  # pragma: no cover - compiled
+    """``observations.nearest_neighbours``'s KD-tree branch (many robots) on a grid of cells
+    at least ``horizon`` wide: ``(status, index, distance)``. Each follower's robots within
+    ``horizon`` are sorted by the KD-tree's own distance (``sqrt(dx * dx + dy * dy)``, the
+    follower's coordinates minus the other's: the same bits), nearest first. Status 1
+    declines the step (the KD-tree then runs it) where its order could differ: two of a
+    follower's k + 1 nearest exactly equally far (the KD-tree orders such ties its own way)
+    or another robot exactly on a follower (the KD-tree's k + 1 query then keeps fewer)."""
+    followers = positions.shape[0] - 1
+    index = np.full((followers, k), -1, dtype=np.intp)
+    distance = np.full((followers, k), np.inf)
+    cx, cy, nx, ny, start, members, xy = _grid(positions, horizon)
+    kept_d = np.empty(k + 1)
+    kept_j = np.empty(k + 1, dtype=np.intp)
+    for i in range(followers):
+        r = i + 1
+        count = _grid_scan(r, positions[r, 0], positions[r, 1], horizon, cx, cy, nx, ny,
+                           start, members, xy, kept_d, kept_j)
+        if count < 0:
+            return 1, index, distance
+        for q in range(1, count):
+            if kept_d[q] == kept_d[q - 1]:
+                return 1, index, distance
+        for q in range(min(count, k)):
+            index[i, q] = kept_j[q]
+            distance[i, q] = kept_d[q]
+    return 0, index, distance
+
+
+@njit(cache=True)
 def _clip(x, bound):  # pragma: no cover - compiled
     """``np.minimum(np.maximum(x, -bound), bound)`` of one finite value."""
     low = x if x > -bound else -bound
