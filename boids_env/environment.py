@@ -6,6 +6,7 @@ import copy
 import warnings
 from collections.abc import Mapping
 from dataclasses import fields
+from operator import attrgetter
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
@@ -588,18 +589,15 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             missing = [a for a in self.agents if a not in actions]
             raise KeyError(f"actions must hold exactly the live agents; unknown: {unknown}, "
                            f"missing: {missing}")
-        values = [actions[a] for a in agents]
-        ndarray, pair = np.ndarray, (2,)
-        if all(type(v) is ndarray and v.shape == pair and v.dtype.kind in "iuf"
-               for v in values):  # the common case: what policies return
-            arr = np.array(values, dtype=np.float64)
-            if not np.isfinite(arr).all():
-                bad = [a for a, row in zip(self.agents, arr, strict=True)
-                       if not np.isfinite(row).all()]
-                raise ValueError(f"actions must be finite; NaN or inf from {bad}")
-        else:
-            arr = np.stack([as_velocities(v, f"action of {a}", (2,))
-                            for a, v in zip(self.agents, values, strict=True)])
+        values = list(map(actions.__getitem__, agents))
+        arr = _real_pairs(values)  # the common case: what policies return
+        if arr is None:
+            return np.stack([as_velocities(v, f"action of {a}", (2,))
+                             for a, v in zip(self.agents, values, strict=True)])
+        if not np.isfinite(arr).all():
+            bad = [a for a, row in zip(self.agents, arr, strict=True)
+                   if not np.isfinite(row).all()]
+            raise ValueError(f"actions must be finite; NaN or inf from {bad}")
         return arr
 
     def _observe(self) -> npt.NDArray[np.float32]:
@@ -743,6 +741,25 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self._world = self._new_world()
             for command, executed, crowd, native in self._history:
                 self._world.step(command, executed, crowd, native=native)
+
+
+_DTYPE = attrgetter("dtype")
+
+
+def _real_pairs(values: list[Any]) -> npt.NDArray[np.float64] | None:
+    """``values`` stacked (F, 2) as float64 if every one is a plain ndarray of shape (2,)
+    and an integer or float dtype (checked by type and dtype sets, not per value in
+    Python), else None (the caller parses each value with its error messages)."""
+    if set(map(type, values)) != {np.ndarray}:
+        return None
+    if any(dtype.kind not in "iuf" for dtype in set(map(_DTYPE, values))):
+        return None
+    try:
+        arr = np.array(values, dtype=np.float64)
+    except ValueError:  # shapes that differ
+        return None
+    # every value is an ndarray, so (F, 2) means every one has shape (2,)
+    return arr if arr.shape == (len(values), 2) else None
 
 
 def _build_world(cfg: EnvConfig, initial: npt.NDArray[np.float64],
