@@ -196,10 +196,11 @@ def fill_observations(positions, velocities, index, velocity_bound, reach, obs,
 
 @njit(cache=True)
 def violations(positions, commanded, angle, separation, cohesion, alignment_deg, wrap,
-               scale, counts, terms):  # pragma: no cover - compiled
+               scale, counts, codes, terms):  # pragma: no cover - compiled
     """``metrics.violation_flags`` of one step, added to ``counts`` (3, F) and scaled into
-    ``terms[:3]`` (−weight · dt · flag, as ``np.multiply(scale, flags)``). ``angle`` (N,) is
-    numpy's ``arctan2`` of the commands (rad)."""
+    ``terms[:3]`` (−weight · dt · flag, as ``np.multiply(scale, flags)``); each follower's
+    three flags as the bits of ``codes`` (F,) (separation 1, cohesion 2, alignment 4: which
+    info dict it gets). ``angle`` (N,) is numpy's ``arctan2`` of the commands (rad)."""
     followers = positions.shape[0] - 1
     still0 = commanded[0, 0] == 0 and commanded[0, 1] == 0
     lead = 0.0 if still0 else np.degrees(angle[0])
@@ -213,9 +214,12 @@ def violations(positions, commanded, angle, separation, cohesion, alignment_deg,
         diff = abs(lead - heading)
         turn = min(diff, 360.0 - diff) if wrap else diff
         flags = (d < separation, d > cohesion, turn > alignment_deg)
+        code = 0
         for row in range(3):
             counts[row, i] += flags[row]
             terms[row, i] = scale[row] * (1.0 if flags[row] else 0.0)
+            code += (1 << row) if flags[row] else 0
+        codes[i] = code
 
 
 @njit(cache=True)
@@ -229,8 +233,8 @@ def _rotated(v, m):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def batch_after(positions, velocities, commanded, angle, ints, params, bounds, counts, obs,
-                terms):  # pragma: no cover - compiled
+def batch_after(positions, velocities, commanded, angle, ints, params, bounds, counts, codes,
+                obs, terms):  # pragma: no cover - compiled
     """The study's observations, violation flags and reward terms of K copies in one call.
 
     Copy ``c`` has robots ``ints[c, 0]:ints[c, 1]`` of the concatenated ``positions``,
@@ -241,7 +245,8 @@ def batch_after(positions, velocities, commanded, angle, ints, params, bounds, c
     thresholds, wrap, the three reward scales, then its frame's matrix (row by row);
     ``bounds[c]``: its Box's low and high. Each copy's arrays go through :func:`nearest`,
     :func:`fill_observations` and :func:`violations` as one env's do (rotated into its frame
-    first, and then clipped to the Box as numpy's array ``clip`` does: the bound on a tie)."""
+    first, and then clipped to the Box as numpy's array ``clip`` does: the bound on a tie);
+    ``codes``: each follower's flags as :func:`violations` writes them."""
     for c in range(ints.shape[0]):
         a = ints[c, 0]
         b = ints[c, 1]
@@ -270,7 +275,7 @@ def batch_after(positions, velocities, commanded, angle, ints, params, bounds, c
                     block[i, j] = x if x < high[j] else high[j]
         violations(positions[a:b], commanded[a:b], angle[a:b], params[c, 3], params[c, 4],
                    params[c, 5], params[c, 6] != 0.0, params[c, 7:10], counts[:, r0:r1],
-                   terms[:, r0:r1])
+                   codes[r0:r1], terms[:, r0:r1])
 
 
 @njit(cache=True)

@@ -146,6 +146,30 @@ def test_episodes_are_bit_identical_to_the_numpy_reference(fields, policy, cycle
     _same(fast.state(), slow.state(), "final state")
 
 
+@pytest.mark.parametrize("fields", [
+    {"robots": 19},  # fused: the infos are copies of 8 dicts picked by the flags' bits
+    {"robots": 7, "frame": "leader", "relative_actions": True},
+    {"robots": 9, "reward": "safe"},  # not fused: a dict literal per agent
+], ids=str)
+def test_dict_api_infos_hold_the_reference_terms_bit_for_bit(fields):
+    fast, slow = parallel_env(max_cycles=120, **fields), parallel_env(max_cycles=120, **fields)
+    fast.reset(seed=4)
+    with kernels.reference():
+        slow.reset_arrays(seed=4)
+    agents = fast.possible_agents
+    rng = np.random.default_rng(2)
+    while fast.agents:
+        act = rng.uniform(-1.0, 1.0, (len(agents), 2))  # speeds over the limit too
+        _, rewards, _, _, infos = fast.step(dict(zip(agents, act, strict=True)))
+        with kernels.reference():
+            want = slow.step_arrays(act)
+        for row, key in enumerate(REWARD_INFO_KEYS):  # signed zeros included
+            _same([infos[a][key] for a in agents], want.terms[row], key)
+        _same([rewards[a] for a in agents], want.rewards, "rewards")
+        assert len({id(infos[a]) for a in agents}) == len(agents)  # a dict each
+        assert all(list(infos[a]) == list(REWARD_INFO_KEYS) for a in agents)
+
+
 def _both_neighbours(positions, horizon, k):
     got = nearest_neighbours(positions, horizon, k)
     with kernels.reference():
