@@ -84,10 +84,13 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
     fields.setdefault("path", "external")  # a person walks its own path (JuPedSim)
     fields.setdefault("startup_time", 0.0)  # the followers move from the first step
     env = parallel_env(robots=robots, max_cycles=10**9, **fields)
-    rng = np.random.default_rng(0)
     reynolds = ReynoldsPolicy()  # bound below: the env's start-up (none), period and speed
     limit = env.config.world.max_speed
     external = env.config.scenario.path == "external"
+    # drawn before the clock starts, as physics_loop draws its commands (each loop's
+    # random stream is then neither side's cost); the dict API's dicts are built per step
+    draws = (np.random.default_rng(0).uniform(-limit, limit, (steps, robots - 1, 2))
+             if policy == "random" else None)
 
     def run_dict() -> int:
         _forget_routes(env)
@@ -96,12 +99,9 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
             env.set_leader_command([0.3, 0.0])
         reynolds.bind(env)
         reynolds.reset(0)
-        for _ in range(steps):
-            if policy == "random":
-                acts = dict(zip(env.agents, rng.uniform(-limit, limit, (len(env.agents), 2)),
-                                strict=True))
-            else:
-                acts = reynolds.act(obs)
+        for k in range(steps):
+            acts = (reynolds.act(obs) if draws is None
+                    else dict(zip(env.agents, draws[k], strict=True)))
             obs, *_ = env.step(acts)
         return steps
 
@@ -112,9 +112,8 @@ def env_loop(robots: int, steps: int, policy: str, api: str = "dict",
             env.set_leader_command([0.3, 0.0])
         reynolds.bind(env)
         reynolds.reset(0)
-        for _ in range(steps):
-            acts = (rng.uniform(-limit, limit, (len(obs), 2)) if policy == "random"
-                    else reynolds.act_batch(obs))
+        for k in range(steps):
+            acts = reynolds.act_batch(obs) if draws is None else draws[k]
             obs = env.step_arrays(acts).observations
         return steps
 
