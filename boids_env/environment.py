@@ -153,8 +153,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     _flags: tuple[dict[AgentID, bool], dict[AgentID, bool]] | None = None
     """The step's all-False and all-True dicts of the live agents (copied each step)."""
     _codes: npt.NDArray[np.intp] | None = None
-    """The last step's violation flags as bits when its fused call computed them (else
-    None): they pick each agent's info dict (:meth:`_infos`)."""
+    """The last step's violation flags as bits when a kernel computed them (the fused call
+    or :meth:`_terms`'s; else None): they pick each agent's info dict (:meth:`_infos`)."""
     _templates: tuple[npt.NDArray[np.float64], list[dict[str, float]]] | None = None
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -457,7 +457,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                 return terms, obs
         world = self._world
         assert world is not None
-        self._codes = None
+        self._codes = None  # _terms sets them when its kernel runs
         return self._terms(world), self._observe()
 
     def _before_physics(self, actions: npt.NDArray[np.float64]) -> _Plan:
@@ -543,11 +543,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if compiled is not None and mc.alignment_source == "command":
             # the same bits in one loop; the angles from numpy's arctan2 (boids_env.kernels)
             cmd = world.commanded
+            codes = np.empty(len(world.positions) - 1, dtype=np.intp)
             compiled.violations(world.positions, cmd, np.arctan2(cmd[:, 1], cmd[:, 0]),
                                 mc.separation_threshold, mc.cohesion_threshold,
                                 mc.alignment_threshold_deg, mc.wrap_alignment,
-                                self._violation_scale, self._counts,
-                                np.empty(len(world.positions) - 1, dtype=np.intp), terms)
+                                self._violation_scale, self._counts, codes, terms)
+            self._codes = codes  # the flags' bits: they pick the info dicts (_infos)
         else:
             flags = metrics.flags_for(mc, world.positions, world.commanded, world.headings)
             stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])

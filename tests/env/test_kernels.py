@@ -149,7 +149,8 @@ def test_episodes_are_bit_identical_to_the_numpy_reference(fields, policy, cycle
 @pytest.mark.parametrize("fields", [
     {"robots": 19},  # fused: the infos are copies of 8 dicts picked by the flags' bits
     {"robots": 7, "frame": "leader", "relative_actions": True},
-    {"robots": 9, "reward": "safe"},  # not fused: a dict literal per agent
+    {"robots": 7, "obs_noise": 0.02},  # not fused: the flags' bits of _terms's kernel
+    {"robots": 9, "reward": "safe"},  # opt-in terms: a dict literal per agent
 ], ids=str)
 def test_dict_api_infos_hold_the_reference_terms_bit_for_bit(fields):
     fast, slow = parallel_env(max_cycles=120, **fields), parallel_env(max_cycles=120, **fields)
