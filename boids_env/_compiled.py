@@ -154,6 +154,70 @@ def nearest_grid(positions, horizon, k):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def reynolds_forces(obs, start, k, horizon, desired, max_force,
+                    max_speed):  # pragma: no cover - compiled
+    """``policies.reynolds.reynolds_forces``'s separation, cohesion and alignment (F, 2)
+    each, from observations ``obs`` (F, D) float64 whose own velocity is columns 0:2 and
+    whose ``k`` neighbour slots start at column ``start``. Each sum over the slots runs in
+    slot order from 0.0, one product added at a time, as numpy's ``einsum`` contractions
+    there do (the same bits: tested against them), and the divisions, clips and the
+    ``has``-neighbour factor are the numpy code's, in its order."""
+    rows = obs.shape[0]
+    separation = np.empty((rows, 2))
+    cohesion = np.empty((rows, 2))
+    alignment = np.empty((rows, 2))
+    pull = max_force / horizon
+    for f in range(rows):
+        count = 0.0
+        close = 0
+        m0 = 0.0
+        m1 = 0.0
+        p0 = 0.0
+        p1 = 0.0
+        t0 = 0.0
+        t1 = 0.0
+        for j in range(k):
+            c = start + 5 * j
+            r0 = obs[f, c]
+            r1 = obs[f, c + 1]
+            d = math.sqrt(r0 * r0 + r1 * r1)
+            near = obs[f, c + 4] > 0.5 and d > 0 and d <= horizon
+            w = 1.0 if near else 0.0
+            count += w
+            m0 += w * r0
+            m1 += w * r1
+            t0 += w * obs[f, c + 2]
+            t1 += w * obs[f, c + 3]
+            inv_cube = 0.0
+            if near and d < desired:
+                close += 1
+                inv_cube = 1.0 / (d * d * d)
+            p0 += inv_cube * r0
+            p1 += inv_cube * r1
+        n = max(count, 1.0)
+        cohesion[f, 0] = pull * (m0 / n)
+        cohesion[f, 1] = pull * (m1 / n)
+        n = float(max(close, 1))
+        x0 = -p0 / n
+        x1 = -p1 / n
+        norm = math.sqrt(x0 * x0 + x1 * x1)
+        scale = min(1.0, (2 * max_force) / max(norm, 1e-300))
+        separation[f, 0] = x0 * scale
+        separation[f, 1] = x1 * scale
+        norm = math.sqrt(t0 * t0 + t1 * t1)
+        d0 = t0 / norm if norm > 0 else 1.0
+        d1 = t1 / norm if norm > 0 else 0.0
+        a0 = d0 * max_speed - obs[f, 0]
+        a1 = d1 * max_speed - obs[f, 1]
+        norm = math.sqrt(a0 * a0 + a1 * a1)
+        scale = min(1.0, max_force / max(norm, 1e-300))
+        has = 1.0 if count > 0 else 0.0
+        alignment[f, 0] = (a0 * scale) * has
+        alignment[f, 1] = (a1 * scale) * has
+    return separation, cohesion, alignment
+
+
+@njit(cache=True)
 def _clip(x, bound):  # pragma: no cover - compiled
     """``np.minimum(np.maximum(x, -bound), bound)`` of one finite value."""
     low = x if x > -bound else -bound

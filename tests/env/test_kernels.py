@@ -171,6 +171,33 @@ def test_dict_api_infos_hold_the_reference_terms_bit_for_bit(fields):
         assert all(list(infos[a]) == list(REWARD_INFO_KEYS) for a in agents)
 
 
+@pytest.mark.parametrize("fields", [
+    {"robots": 19},
+    {"robots": 13, "neighbours": 3, "frame": "leader"},
+    {"robots": 9, "neighbours": 0},
+    {"robots": 31, "neighbours": 30, "horizon": 3.0, "obs_noise": 0.05},
+    {"robots": 200, "arena_half_size": 10.0, "neighbours": 6},
+], ids=str)
+def test_reynolds_forces_kernel_gives_the_numpy_policys_bits(fields):
+    env = parallel_env(max_cycles=60, **fields)
+    obs = env.reset_arrays(seed=5)
+    fast, slow = ReynoldsPolicy(), ReynoldsPolicy()
+    for policy in (fast, slow):
+        policy.bind(env)
+        policy.reset(0)
+    step = 0
+    while env.agents:
+        act = fast.act_batch(obs)
+        with kernels.reference():
+            want = slow.act_batch(obs)
+        _same(act, want, f"step {step} actions")
+        assert fast.forces.keys() == slow.forces.keys()
+        for name in fast.forces:  # the weighted rule forces, signed zeros included
+            _same(fast.forces[name], slow.forces[name], f"step {step} {name}")
+        obs = env.step_arrays(act).observations
+        step += 1
+
+
 def _both_neighbours(positions, horizon, k):
     got = nearest_neighbours(positions, horizon, k)
     with kernels.reference():
