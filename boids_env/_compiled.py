@@ -48,6 +48,176 @@ def nearest(positions, horizon, k):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _grid(positions, horizon):  # pragma: no cover - compiled
+    """The robots sorted into cells a little wider than ``horizon`` (two robots within it
+    are never two cells apart, whatever the rounding of the cell coordinates), doubled
+    until there are at most 4n + 16: each robot's cell ``(cx, cy)``, the grid's width
+    ``nx`` and height, each cell's first entry ``start`` in ``members`` (robot indices in
+    cell order) and their coordinates in that order."""
+    n = positions.shape[0]
+    x0 = positions[:, 0].min()
+    y0 = positions[:, 1].min()
+    width = positions[:, 0].max() - x0
+    height = positions[:, 1].max() - y0
+    cell = horizon * (1.0 + 1e-9)
+    while (width / cell + 1.0) * (height / cell + 1.0) > 4.0 * n + 16.0:
+        cell *= 2.0
+    nx = int(width / cell) + 1
+    ny = int(height / cell) + 1
+    cx = np.empty(n, dtype=np.intp)
+    cy = np.empty(n, dtype=np.intp)
+    start = np.zeros(nx * ny + 1, dtype=np.intp)
+    for j in range(n):
+        cx[j] = min(int((positions[j, 0] - x0) / cell), nx - 1)
+        cy[j] = min(int((positions[j, 1] - y0) / cell), ny - 1)
+        start[cy[j] * nx + cx[j] + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    members = np.empty(n, dtype=np.intp)
+    fill = start[:-1].copy()
+    for j in range(n):
+        c = cy[j] * nx + cx[j]
+        members[fill[c]] = j
+        fill[c] += 1
+    sorted_xy = np.empty((n, 2))
+    for m in range(n):
+        sorted_xy[m, 0] = positions[members[m], 0]
+        sorted_xy[m, 1] = positions[members[m], 1]
+    return cx, cy, nx, ny, start, members, sorted_xy
+
+
+@njit(cache=True)
+def _grid_scan(r, px, py, horizon, cx, cy, nx, ny, start, members, xy, kept_d,
+               kept_j):  # pragma: no cover - compiled
+    """Robot ``r``'s nearest robots within ``horizon`` (at most ``len(kept_d)``), sorted by
+    distance into ``kept_d`` and ``kept_j``: their count, or -1 for another robot exactly on
+    it."""
+    size = kept_d.shape[0]
+    far = horizon * horizon * (1.0 + 1e-9)  # beyond the horizon whatever the rounding
+    count = 0
+    for gy in range(max(cy[r] - 1, 0), min(cy[r] + 2, ny)):
+        for gx in range(max(cx[r] - 1, 0), min(cx[r] + 2, nx)):
+            c = gy * nx + gx
+            for m in range(start[c], start[c + 1]):
+                dx = px - xy[m, 0]
+                dy = py - xy[m, 1]
+                s2 = dx * dx + dy * dy
+                if s2 > far:
+                    continue
+                d = math.sqrt(s2)
+                if d <= 0.0:
+                    if members[m] != r:
+                        return -1
+                    continue
+                if d > horizon or (count == size and not d < kept_d[size - 1]):
+                    continue
+                q = count if count < size else size - 1
+                while q > 0 and kept_d[q - 1] > d:
+                    kept_d[q] = kept_d[q - 1]
+                    kept_j[q] = kept_j[q - 1]
+                    q -= 1
+                kept_d[q] = d
+                kept_j[q] = members[m]
+                if count < size:
+                    count += 1
+    return count
+
+
+@njit(cache=True)
+def nearest_grid(positions, horizon, k):  # pragma: no cover - compiled
+    """``observations.nearest_neighbours``'s KD-tree branch (many robots) on a grid of cells
+    at least ``horizon`` wide: ``(status, index, distance)``. Each follower's robots within
+    ``horizon`` are sorted by the KD-tree's own distance (``sqrt(dx * dx + dy * dy)``, the
+    follower's coordinates minus the other's: the same bits), nearest first. Status 1
+    declines the step (the KD-tree then runs it) where its order could differ: two of a
+    follower's k + 1 nearest exactly equally far (the KD-tree orders such ties its own way)
+    or another robot exactly on a follower (the KD-tree's k + 1 query then keeps fewer)."""
+    followers = positions.shape[0] - 1
+    index = np.full((followers, k), -1, dtype=np.intp)
+    distance = np.full((followers, k), np.inf)
+    cx, cy, nx, ny, start, members, xy = _grid(positions, horizon)
+    kept_d = np.empty(k + 1)
+    kept_j = np.empty(k + 1, dtype=np.intp)
+    for i in range(followers):
+        r = i + 1
+        count = _grid_scan(r, positions[r, 0], positions[r, 1], horizon, cx, cy, nx, ny,
+                           start, members, xy, kept_d, kept_j)
+        if count < 0:
+            return 1, index, distance
+        for q in range(1, count):
+            if kept_d[q] == kept_d[q - 1]:
+                return 1, index, distance
+        for q in range(min(count, k)):
+            index[i, q] = kept_j[q]
+            distance[i, q] = kept_d[q]
+    return 0, index, distance
+
+
+@njit(cache=True)
+def reynolds_forces(obs, start, k, horizon, desired, max_force,
+                    max_speed):  # pragma: no cover - compiled
+    """``policies.reynolds.reynolds_forces``'s separation, cohesion and alignment (F, 2)
+    each, from observations ``obs`` (F, D) float64 whose own velocity is columns 0:2 and
+    whose ``k`` neighbour slots start at column ``start``. Each sum over the slots runs in
+    slot order from 0.0, one product added at a time, as numpy's ``einsum`` contractions
+    there do (the same bits: tested against them), and the divisions, clips and the
+    ``has``-neighbour factor are the numpy code's, in its order."""
+    rows = obs.shape[0]
+    separation = np.empty((rows, 2))
+    cohesion = np.empty((rows, 2))
+    alignment = np.empty((rows, 2))
+    pull = max_force / horizon
+    for f in range(rows):
+        count = 0.0
+        close = 0
+        m0 = 0.0
+        m1 = 0.0
+        p0 = 0.0
+        p1 = 0.0
+        t0 = 0.0
+        t1 = 0.0
+        for j in range(k):
+            c = start + 5 * j
+            r0 = obs[f, c]
+            r1 = obs[f, c + 1]
+            d = math.sqrt(r0 * r0 + r1 * r1)
+            near = obs[f, c + 4] > 0.5 and d > 0 and d <= horizon
+            w = 1.0 if near else 0.0
+            count += w
+            m0 += w * r0
+            m1 += w * r1
+            t0 += w * obs[f, c + 2]
+            t1 += w * obs[f, c + 3]
+            inv_cube = 0.0
+            if near and d < desired:
+                close += 1
+                inv_cube = 1.0 / (d * d * d)
+            p0 += inv_cube * r0
+            p1 += inv_cube * r1
+        n = max(count, 1.0)
+        cohesion[f, 0] = pull * (m0 / n)
+        cohesion[f, 1] = pull * (m1 / n)
+        n = float(max(close, 1))
+        x0 = -p0 / n
+        x1 = -p1 / n
+        norm = math.sqrt(x0 * x0 + x1 * x1)
+        scale = min(1.0, (2 * max_force) / max(norm, 1e-300))
+        separation[f, 0] = x0 * scale
+        separation[f, 1] = x1 * scale
+        norm = math.sqrt(t0 * t0 + t1 * t1)
+        d0 = t0 / norm if norm > 0 else 1.0
+        d1 = t1 / norm if norm > 0 else 0.0
+        a0 = d0 * max_speed - obs[f, 0]
+        a1 = d1 * max_speed - obs[f, 1]
+        norm = math.sqrt(a0 * a0 + a1 * a1)
+        scale = min(1.0, max_force / max(norm, 1e-300))
+        has = 1.0 if count > 0 else 0.0
+        alignment[f, 0] = (a0 * scale) * has
+        alignment[f, 1] = (a1 * scale) * has
+    return separation, cohesion, alignment
+
+
+@njit(cache=True)
 def _clip(x, bound):  # pragma: no cover - compiled
     """``np.minimum(np.maximum(x, -bound), bound)`` of one finite value."""
     low = x if x > -bound else -bound
@@ -90,10 +260,11 @@ def fill_observations(positions, velocities, index, velocity_bound, reach, obs,
 
 @njit(cache=True)
 def violations(positions, commanded, angle, separation, cohesion, alignment_deg, wrap,
-               scale, counts, terms):  # pragma: no cover - compiled
+               scale, counts, codes, terms):  # pragma: no cover - compiled
     """``metrics.violation_flags`` of one step, added to ``counts`` (3, F) and scaled into
-    ``terms[:3]`` (−weight · dt · flag, as ``np.multiply(scale, flags)``). ``angle`` (N,) is
-    numpy's ``arctan2`` of the commands (rad)."""
+    ``terms[:3]`` (−weight · dt · flag, as ``np.multiply(scale, flags)``); each follower's
+    three flags as the bits of ``codes`` (F,) (separation 1, cohesion 2, alignment 4: which
+    info dict it gets). ``angle`` (N,) is numpy's ``arctan2`` of the commands (rad)."""
     followers = positions.shape[0] - 1
     still0 = commanded[0, 0] == 0 and commanded[0, 1] == 0
     lead = 0.0 if still0 else np.degrees(angle[0])
@@ -107,9 +278,12 @@ def violations(positions, commanded, angle, separation, cohesion, alignment_deg,
         diff = abs(lead - heading)
         turn = min(diff, 360.0 - diff) if wrap else diff
         flags = (d < separation, d > cohesion, turn > alignment_deg)
+        code = 0
         for row in range(3):
             counts[row, i] += flags[row]
             terms[row, i] = scale[row] * (1.0 if flags[row] else 0.0)
+            code += (1 << row) if flags[row] else 0
+        codes[i] = code
 
 
 @njit(cache=True)
@@ -123,8 +297,8 @@ def _rotated(v, m):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def batch_after(positions, velocities, commanded, angle, ints, params, bounds, counts, obs,
-                terms):  # pragma: no cover - compiled
+def batch_after(positions, velocities, commanded, angle, ints, params, bounds, counts, codes,
+                obs, terms):  # pragma: no cover - compiled
     """The study's observations, violation flags and reward terms of K copies in one call.
 
     Copy ``c`` has robots ``ints[c, 0]:ints[c, 1]`` of the concatenated ``positions``,
@@ -135,7 +309,8 @@ def batch_after(positions, velocities, commanded, angle, ints, params, bounds, c
     thresholds, wrap, the three reward scales, then its frame's matrix (row by row);
     ``bounds[c]``: its Box's low and high. Each copy's arrays go through :func:`nearest`,
     :func:`fill_observations` and :func:`violations` as one env's do (rotated into its frame
-    first, and then clipped to the Box as numpy's array ``clip`` does: the bound on a tie)."""
+    first, and then clipped to the Box as numpy's array ``clip`` does: the bound on a tie);
+    ``codes``: each follower's flags as :func:`violations` writes them."""
     for c in range(ints.shape[0]):
         a = ints[c, 0]
         b = ints[c, 1]
@@ -164,7 +339,7 @@ def batch_after(positions, velocities, commanded, angle, ints, params, bounds, c
                     block[i, j] = x if x < high[j] else high[j]
         violations(positions[a:b], commanded[a:b], angle[a:b], params[c, 3], params[c, 4],
                    params[c, 5], params[c, 6] != 0.0, params[c, 7:10], counts[:, r0:r1],
-                   terms[:, r0:r1])
+                   codes[r0:r1], terms[:, r0:r1])
 
 
 @njit(cache=True)

@@ -6,6 +6,7 @@ import copy
 import warnings
 from collections.abc import Mapping
 from dataclasses import fields
+from operator import attrgetter
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
@@ -148,6 +149,13 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     ## Version History
     - v0: first release.
     """
+
+    _flags: tuple[dict[AgentID, bool], dict[AgentID, bool]] | None = None
+    """The step's all-False and all-True dicts of the live agents (copied each step)."""
+    _codes: npt.NDArray[np.intp] | None = None
+    """The last step's violation flags as bits when a kernel computed them (the fused call
+    or :meth:`_terms`'s; else None): they pick each agent's info dict (:meth:`_infos`)."""
+    _templates: tuple[npt.NDArray[np.float64], list[dict[str, float]]] | None = None
 
     metadata: ClassVar[dict[str, Any]] = {
         "name": "boids_leader_v0", "render_modes": ["human", "rgb_array"], "render_fps": 10,
@@ -342,9 +350,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             return {}, {}, {}, {}, {}
         agents = self.agents
         result = self._advance(self._parse_actions(actions))
+        flags = self._flags
+        if flags is None or len(flags[0]) != len(agents):  # built once (copies are cheaper)
+            flags = self._flags = (dict.fromkeys(agents, False), dict.fromkeys(agents, True))
         return (dict(zip(agents, result.observations, strict=True)),
                 dict(zip(agents, result.rewards.tolist(), strict=True)),
-                dict.fromkeys(agents, False), dict.fromkeys(agents, result.truncated),
+                flags[0].copy(), flags[result.truncated].copy(),
                 self._infos(agents, result.terms))
 
     def _infos(self, agents: list[AgentID], terms: npt.NDArray[np.float64]
@@ -353,6 +364,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         k0, k1, k2, k3, k4, k5, k6, k7, k8 = REWARD_INFO_KEYS
         if not (self._safety_on or self._gap_scale or self._intrusion_scale
                 or self._parked_scale):
+            codes = self._codes
+            if codes is not None and len(codes) == len(agents):
+                # the fused call's flags (bits 1, 2, 4) pick one of 8 dicts of the same
+                # floats (scale × 1.0 or × 0.0, as the kernel multiplies), copied per agent
+                return dict(zip(agents, map(dict.copy, map(self._info_templates().__getitem__,
+                                                           codes.tolist())), strict=True))
             # the opt-in rows are the zeros they started as: a copy of the zero dict with
             # the study's three terms set (a third cheaper than a literal per agent)
             t0, t1, t2 = terms[:3].tolist()
@@ -366,6 +383,25 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         return {a: {k0: c0, k1: c1, k2: c2, k3: c3, k4: c4, k5: c5, k6: c6, k7: c7, k8: c8}
                 for a, (c0, c1, c2, c3, c4, c5, c6, c7, c8) in zip(
                     agents, terms.T.tolist(), strict=True)}
+
+    def _info_templates(self) -> list[dict[str, float]]:
+        """The 8 info dicts of the study's reward (no opt-in term), by the flags' bits
+        (separation 1, cohesion 2, alignment 4): each term ``scale × 1.0`` or ``× 0.0``,
+        the products the kernel's terms are (−0.0 for an unflagged term), built once per
+        episode's scales."""
+        scale = self._violation_scale
+        cached = self._templates
+        if cached is not None and cached[0] is scale:
+            return cached[1]
+        values = scale.tolist()
+        templates = []
+        for code in range(8):
+            info = dict.fromkeys(REWARD_INFO_KEYS, 0.0)
+            for row in range(3):
+                info[REWARD_INFO_KEYS[row]] = values[row] * (1.0 if code >> row & 1 else 0.0)
+            templates.append(info)
+        self._templates = (scale, templates)
+        return templates
 
     def step_arrays(self, actions: npt.ArrayLike) -> ArrayStep:
         """:meth:`step` without dicts, for vectorised trainers: ``actions`` (F, 2), one row per
@@ -409,14 +445,19 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         compiled = kernels.loaded()
         if compiled is not None:
             followers = len(self.possible_agents)
-            plan = self._fused = Fused.current(self._fused, [self], [0, followers])
+            plan = self._fused
+            if plan is None or plan.keys[0][0] is not self.episode_config or \
+                    plan.keys[0][1] is not self._counts:  # Fused.current for one env
+                plan = self._fused = Fused([self], [0, followers])
             if plan.index:
                 obs = np.empty((followers, self._observer.layout.size), dtype=np.float32)
                 terms = np.zeros((len(REWARD_INFO_KEYS), followers))
                 plan.run(compiled, obs, terms)
+                self._codes = plan.codes
                 return terms, obs
         world = self._world
         assert world is not None
+        self._codes = None  # _terms sets them when its kernel runs
         return self._terms(world), self._observe()
 
     def _before_physics(self, actions: npt.NDArray[np.float64]) -> _Plan:
@@ -520,10 +561,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if compiled is not None and mc.alignment_source == "command":
             # the same bits in one loop; the angles from numpy's arctan2 (boids_env.kernels)
             cmd = world.commanded
+            codes = np.empty(len(world.positions) - 1, dtype=np.intp)
             compiled.violations(world.positions, cmd, np.arctan2(cmd[:, 1], cmd[:, 0]),
                                 mc.separation_threshold, mc.cohesion_threshold,
                                 mc.alignment_threshold_deg, mc.wrap_alignment,
-                                self._violation_scale, self._counts, terms)
+                                self._violation_scale, self._counts, codes, terms)
+            self._codes = codes  # the flags' bits: they pick the info dicts (_infos)
         else:
             flags = metrics.flags_for(mc, world.positions, world.commanded, world.headings)
             stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])
@@ -606,18 +649,15 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             missing = [a for a in self.agents if a not in actions]
             raise KeyError(f"actions must hold exactly the live agents; unknown: {unknown}, "
                            f"missing: {missing}")
-        values = [actions[a] for a in agents]
-        ndarray, pair = np.ndarray, (2,)
-        if all(type(v) is ndarray and v.shape == pair and v.dtype.kind in "iuf"
-               for v in values):  # the common case: what policies return
-            arr = np.array(values, dtype=np.float64)
-            if not np.isfinite(arr).all():
-                bad = [a for a, row in zip(self.agents, arr, strict=True)
-                       if not np.isfinite(row).all()]
-                raise ValueError(f"actions must be finite; NaN or inf from {bad}")
-        else:
-            arr = np.stack([as_velocities(v, f"action of {a}", (2,))
-                            for a, v in zip(self.agents, values, strict=True)])
+        values = list(map(actions.__getitem__, agents))
+        arr = _real_pairs(values)  # the common case: what policies return
+        if arr is None:
+            return np.stack([as_velocities(v, f"action of {a}", (2,))
+                             for a, v in zip(self.agents, values, strict=True)])
+        if not np.isfinite(arr).all():
+            bad = [a for a, row in zip(self.agents, arr, strict=True)
+                   if not np.isfinite(row).all()]
+            raise ValueError(f"actions must be finite; NaN or inf from {bad}")
         return arr
 
     def _observe(self) -> npt.NDArray[np.float32]:
@@ -751,6 +791,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         state["_world"] = None
         state["_renderer"] = None
         state["_fused"] = None  # rebuilt on use: its counts are views of the env's
+        state["_codes"] = None
         state["_replay"] = self._world is not None
         return state
 
@@ -761,6 +802,25 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             self._world = self._new_world()
             for command, executed, crowd, native in self._history:
                 self._world.step(command, executed, crowd, native=native)
+
+
+_DTYPE = attrgetter("dtype")
+
+
+def _real_pairs(values: list[Any]) -> npt.NDArray[np.float64] | None:
+    """``values`` stacked (F, 2) as float64 if every one is a plain ndarray of shape (2,)
+    and an integer or float dtype (checked by type and dtype sets, not per value in
+    Python), else None (the caller parses each value with its error messages)."""
+    if set(map(type, values)) != {np.ndarray}:
+        return None
+    if any(dtype.kind not in "iuf" for dtype in set(map(_DTYPE, values))):
+        return None
+    try:
+        arr = np.array(values, dtype=np.float64)
+    except ValueError:  # shapes that differ
+        return None
+    # every value is an ndarray, so (F, 2) means every one has shape (2,)
+    return arr if arr.shape == (len(values), 2) else None
 
 
 def _build_world(cfg: EnvConfig, initial: npt.NDArray[np.float64],

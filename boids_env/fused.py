@@ -72,6 +72,8 @@ class Fused:
         self.rotating = np.flatnonzero(self.ints[:, 3]).tolist()
         self.relative = [j for j, c in enumerate(cfgs) if c.observation.relative_actions]
         self.counts = np.zeros((3, bounds[-1]), dtype=np.int64)
+        self.codes = np.zeros(bounds[-1], dtype=np.intp)
+        """Each row's three violation flags as bits (1, 2, 4), rewritten by every run."""
         for i in self.index:
             self.counts[:, bounds[i]:bounds[i + 1]] = envs[i]._counts
             envs[i]._counts = self.counts[:, bounds[i]:bounds[i + 1]]
@@ -112,7 +114,7 @@ class Fused:
             # bits then never depend on a row's place in a longer array)
             angle = np.concatenate([np.arctan2(c[:, 1], c[:, 0]) for c in commands])
         compiled.batch_after(positions, velocities, commanded, angle, self.ints, self.params,
-                             self.bounds, self.counts, observations, terms)
+                             self.bounds, self.counts, self.codes, observations, terms)
         for j in self.relative:
             env, start = chosen[j], self.ints[j, 2]
             block = observations[start:start + len(env.possible_agents)]

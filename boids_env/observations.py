@@ -286,8 +286,10 @@ def nearest_neighbours(positions: FloatArray, horizon: float, k: int
     Returns:
         ``(index, distance)`` of shape (N-1, k): robot indices nearest first (exact ties by
         index below ``KD_TREE_MIN_ROBOTS`` robots, in the KD-tree's order above), -1 and
-        ``inf`` in empty slots. Robots at distance 0 (a follower itself, or one exactly on it)
-        are never neighbours.
+        ``inf`` in empty slots. From ``KD_TREE_MIN_ROBOTS`` robots on, the compiled kernels
+        search a grid of cells instead (``_compiled.nearest_grid``: the KD-tree's distances
+        and order, bit for bit; a step with an exact tie falls back to the KD-tree). Robots
+        at distance 0 (a follower itself, or one exactly on it) are never neighbours.
     """
     n = len(positions)
     followers = n - 1
@@ -297,6 +299,11 @@ def nearest_neighbours(positions: FloatArray, horizon: float, k: int
     if n < KD_TREE_MIN_ROBOTS and compiled is not None:
         return compiled.nearest(np.ascontiguousarray(positions, dtype=np.float64),
                                 float(horizon), int(k))
+    if compiled is not None:  # many robots: a grid of cells, declining exact ties
+        status, index, distance = compiled.nearest_grid(
+            np.ascontiguousarray(positions, dtype=np.float64), float(horizon), int(k))
+        if status == 0:
+            return index, distance
     if n < KD_TREE_MIN_ROBOTS:
         # x and y apart: (F, N) differences broadcast row by row (a trailing axis of 2 makes
         # numpy's inner loops two elements long, 4x slower at 19 robots); the squares are

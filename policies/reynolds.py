@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env import kernels
 from boids_env.config import (
     ENV_OWNED,
     PRESETS,
@@ -406,9 +407,16 @@ class ReynoldsPolicy(BatchPolicy):
             return np.zeros((len(obs), 2), dtype=np.float32)
         slots = layout.slots(obs)
         own = obs[:, layout.own_velocity]
-        forces = reynolds_forces(layout.slot_position(slots), layout.slot_velocity(slots),
-                                 layout.slot_valid(slots) > 0.5, own,
-                                 obs[:, layout.leader_position], p)
+        compiled = kernels.compiled()
+        if compiled is not None:  # the same bits in one loop (boids_env.kernels)
+            forces = dict(zip(("separation", "cohesion", "alignment"), compiled.reynolds_forces(
+                np.ascontiguousarray(obs), layout.neighbours_start, layout.neighbours,
+                p.horizon, p.desired_separation, p.max_force, p.max_speed), strict=True))
+            forces["leader"] = np.array(obs[:, layout.leader_position], dtype=float)
+        else:
+            forces = reynolds_forces(layout.slot_position(slots), layout.slot_velocity(slots),
+                                     layout.slot_valid(slots) > 0.5, own,
+                                     obs[:, layout.leader_position], p)
         if p.personal_space > 0:
             forces["leader"] = proxemic_leader_force(obs[:, layout.leader_position],
                                                      obs[:, layout.leader_velocity],

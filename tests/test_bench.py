@@ -36,6 +36,30 @@ def test_every_world_row_steps(row, api):
     assert loop() == 3 and loop() == 3  # reset between runs
 
 
+def test_a_loops_reset_is_off_the_clock(monkeypatch):
+    from boids_env.bench import run
+
+    now = [0.0]  # a fake clock: a reset takes 100 s, each step 1 s
+    monkeypatch.setattr(run.time, "perf_counter", lambda: now[0])
+
+    def reset():
+        now[0] += 100.0
+        return "episode"
+
+    def steps(episode):
+        assert episode == "episode"  # what the reset returned
+        now[0] += 4.0
+        return 4
+
+    loop = run.Loop(reset, steps)
+    summary, rounds = run.timed_together({"loop": loop}, 3)
+    assert summary["loop"]["median"] == 1.0
+    assert [r["loop"] for r in rounds] == [1.0, 1.0, 1.0]  # 4 steps in 4 s, every round
+    assert run.timed(loop, 2)["median"] == 1.0
+    now[0] = 0.0
+    assert loop() == 4 and now[0] == 104.0  # called unprepared, it resets first
+
+
 def test_paired_ratios_are_taken_round_by_round():
     from boids_env.bench.run import paired_ratio, timed_together
 

@@ -82,8 +82,10 @@ EPISODES = [
     ({"robots": 4, "neighbours": 0, "frame": "leader"}, "random", 40),
     # no neighbour slots at all (the compiled blocks with an empty index)
     ({"robots": 5, "neighbours": 0, "obs_noise": 0.02}, "random", 50),
-    # the KD-tree's neighbour search feeding the compiled observation blocks
+    # many robots: the grid search standing in for the KD-tree (the KD-tree in the
+    # reference), feeding the compiled observation blocks
     ({"robots": 100, "arena_half_size": 8.0}, "random", 20),
+    ({"robots": 400, "arena_half_size": 12.0}, "reynolds", 15),
     # the safety filter (commands twice the limit: most followers' constraints bind), the
     # static slots and wall flags on a map's contours and cells (the lab)
     ({"scene": "lab", "robots": 19, "safety_filter": True, "sense_walls": True,
@@ -144,6 +146,58 @@ def test_episodes_are_bit_identical_to_the_numpy_reference(fields, policy, cycle
     _same(fast.state(), slow.state(), "final state")
 
 
+@pytest.mark.parametrize("fields", [
+    {"robots": 19},  # fused: the infos are copies of 8 dicts picked by the flags' bits
+    {"robots": 7, "frame": "leader", "relative_actions": True},
+    {"robots": 7, "obs_noise": 0.02},  # not fused: the flags' bits of _terms's kernel
+    {"robots": 9, "reward": "safe"},  # opt-in terms: a dict literal per agent
+], ids=str)
+def test_dict_api_infos_hold_the_reference_terms_bit_for_bit(fields):
+    fast, slow = parallel_env(max_cycles=120, **fields), parallel_env(max_cycles=120, **fields)
+    fast.reset(seed=4)
+    with kernels.reference():
+        slow.reset_arrays(seed=4)
+    agents = fast.possible_agents
+    rng = np.random.default_rng(2)
+    while fast.agents:
+        act = rng.uniform(-1.0, 1.0, (len(agents), 2))  # speeds over the limit too
+        _, rewards, _, _, infos = fast.step(dict(zip(agents, act, strict=True)))
+        with kernels.reference():
+            want = slow.step_arrays(act)
+        for row, key in enumerate(REWARD_INFO_KEYS):  # signed zeros included
+            _same([infos[a][key] for a in agents], want.terms[row], key)
+        _same([rewards[a] for a in agents], want.rewards, "rewards")
+        assert len({id(infos[a]) for a in agents}) == len(agents)  # a dict each
+        assert all(list(infos[a]) == list(REWARD_INFO_KEYS) for a in agents)
+
+
+@pytest.mark.parametrize("fields", [
+    {"robots": 19},
+    {"robots": 13, "neighbours": 3, "frame": "leader"},
+    {"robots": 9, "neighbours": 0},
+    {"robots": 31, "neighbours": 30, "horizon": 3.0, "obs_noise": 0.05},
+    {"robots": 200, "arena_half_size": 10.0, "neighbours": 6},
+], ids=str)
+def test_reynolds_forces_kernel_gives_the_numpy_policys_bits(fields):
+    env = parallel_env(max_cycles=60, **fields)
+    obs = env.reset_arrays(seed=5)
+    fast, slow = ReynoldsPolicy(), ReynoldsPolicy()
+    for policy in (fast, slow):
+        policy.bind(env)
+        policy.reset(0)
+    step = 0
+    while env.agents:
+        act = fast.act_batch(obs)
+        with kernels.reference():
+            want = slow.act_batch(obs)
+        _same(act, want, f"step {step} actions")
+        assert fast.forces.keys() == slow.forces.keys()
+        for name in fast.forces:  # the weighted rule forces, signed zeros included
+            _same(fast.forces[name], slow.forces[name], f"step {step} {name}")
+        obs = env.step_arrays(act).observations
+        step += 1
+
+
 def _both_neighbours(positions, horizon, k):
     got = nearest_neighbours(positions, horizon, k)
     with kernels.reference():
@@ -165,6 +219,41 @@ def test_neighbour_search_keeps_exact_ties_in_index_order(k):
     assert got[0][0].tolist() == [0, 2, 5, 20, 4, 6][:k] or k == 30
     assert 20 not in got[0][4] and 5 not in got[0][19], "distance 0 is never a neighbour"
     assert (21 in got[0][18]) == (k == 30), "a robot exactly at the horizon counts"
+
+
+def test_grid_neighbour_search_gives_the_kd_trees_bits_or_declines():
+    from boids_env import _compiled
+    from boids_env.observations import KD_TREE_MIN_ROBOTS
+
+    rng = np.random.default_rng(7)
+    ran = 0
+    for case in range(60):
+        n = int(rng.integers(KD_TREE_MIN_ROBOTS, 1200))
+        k = int(rng.integers(1, 25))
+        horizon = float(rng.choice([0.05, 0.3, 1.0, 2.5, 60.0]))
+        positions = rng.uniform(-8.0, 8.0, (n, 2)) * rng.uniform(0.05, 3.0)
+        status, index, distance = _compiled.nearest_grid(positions, horizon, k)
+        with kernels.reference():  # the KD-tree
+            want = nearest_neighbours(positions, horizon, k)
+        if status == 0:
+            ran += 1
+            _same(index, want[0], f"case {case} index")
+            _same(distance, want[1], f"case {case} distance")
+        got = nearest_neighbours(positions, horizon, k)  # the grid, or the KD-tree after it
+        _same(got[0], want[0], f"case {case} index")
+        _same(got[1], want[1], f"case {case} distance")
+    assert ran >= 55, "random layouts have no exact ties: the grid decides them"
+    # exact ties among a follower's nearest (a grid) and a robot exactly on another: the
+    # grid declines (the KD-tree orders such ties its own way) and the KD-tree decides
+    grid = np.array([[x, y] for x in range(12) for y in range(10)], dtype=float) * 0.5
+    jittered = grid + rng.uniform(-0.01, 0.01, grid.shape)
+    on_top = np.vstack([jittered, jittered[7]])
+    for positions in (grid, on_top):
+        assert _compiled.nearest_grid(positions, 1.0, 6)[0] == 1
+        got, want = _both_neighbours(positions, 1.0, 6)
+        _same(got[0], want[0], "declined index")
+        _same(got[1], want[1], "declined distance")
+    assert _compiled.nearest_grid(jittered, 1.0, 6)[0] == 0
 
 
 def test_clip_speed_kernel_matches_on_ordinary_zero_and_huge_rows():
