@@ -222,19 +222,34 @@ class ControllerCore:
         speed-limited world-frame commands (held still during the start-up hold), filtered
         against every robot's odometry and the scene, then, for robots with a heading, the
         driver's law. The leader's odometry velocity stands for the leader's command, which
-        the in-process env knows and a controller node does not. A person leading is kept
-        off as the env keeps it (its own radius); a crowd the node does not see."""
+        the in-process env knows and a controller node does not. A person leading and the
+        pedestrians are kept off as the env keeps them (at their own width), at their
+        odometry velocities (the env uses their commands)."""
         w = self.config.world
         world = clip_speed(self.observer.to_world(raw), w.max_speed)
         if self._holding(tick.stamp_ns):
             world = np.zeros_like(world)
-        sc = self.config.scenario
-        person = None if sc.leader == "robot" else People(
-            tick.positions[:1], velocities[:1], sc.person_radius, person_leads=True)
         world = filter_commands(world, tick.positions, velocities, velocities[0],
                                 w.robot_radius, w.max_speed, self.config.scene,
-                                self.config.safety, person)
+                                self.config.safety, self._people(tick, velocities))
         return world if headings is None else self.model.native(world, headings[1:])
+
+    def _people(self, tick: Tick, velocities: np.ndarray) -> People | None:
+        """The people the safety filter keeps off (None: none): a person leading (robot 0)
+        and the pedestrians of the tick's odometry."""
+        sc = self.config.scenario
+        leads = sc.leader != "robot"
+        crowd = tick.crowd_positions is not None and tick.crowd_velocities is not None \
+            and len(tick.crowd_positions) > 0
+        if not leads and not crowd:
+            return None
+        positions = [tick.positions[:1]] if leads else []
+        moving = [velocities[:1]] if leads else []
+        if crowd:
+            positions.append(np.asarray(tick.crowd_positions, dtype=np.float64))
+            moving.append(np.asarray(tick.crowd_velocities, dtype=np.float64))
+        return People(np.concatenate(positions), np.concatenate(moving), sc.person_radius,
+                      person_leads=leads)
 
     def world_forces(self) -> dict[str, np.ndarray]:
         """The policy's rule forces of the last answer in the world frame (empty for a policy

@@ -37,3 +37,4 @@ def test_an_env_with_a_person_and_a_crowd_is_pointed_to_learned_crowd():
     config = EnvConfig.from_kwargs(**{**CASE, "route_sensing": True})
     assert fitting_model(config) == "learned-crowd"
     assert CROWD_MODEL.name == "ppo_crowd.zip"
+

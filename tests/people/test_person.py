@@ -383,3 +383,31 @@ def test_the_ros_graph_controller_applies_the_safety_filter_a_model_was_trained_
         touching.append((d < 2 * r + 0.005).any())
     assert np.mean(touching) <= 0.02
     assert not any(ours.config.scene.within(p, r, 0.005).any() for p in ours.positions)
+
+
+def test_the_ros_graph_controller_keeps_the_person_and_the_crowd_off_as_the_env_does():
+    # the controller node filters learned-crowd's commands against the person's and the
+    # pedestrians' odometry: through the lockstep graph nobody reaches the person's zone
+    from boids_env.eval.graph.controller import (
+        ControllerCore,
+        ControllerOptions,
+        controller_policy,
+    )
+    from boids_env.eval.graph.sim import SimCore, SimOptions
+
+    options = ControllerOptions(policy="learned-crowd", quiet=True)
+    policy = controller_policy(options)
+    fields = {"leader": "person", "crowd": 8, "scene": "floorplan:1004", "robots": 7,
+              "max_cycles": 400}
+    core = SimCore(SimOptions(env_fields=fields, lockstep=True, quiet=True))  # no filter
+    assert not core.config.safety.safety_filter
+    transport = None
+
+    def episode(_stamp):
+        return transport.info
+
+    controller = ControllerCore(options, policy, core.config, "/c", episode)
+    transport = _Loopback(controller)
+    positions = core.run_episode(0, transport).recording.positions
+    person = np.linalg.norm(positions[:, 1:] - positions[:, :1], axis=2)
+    assert person.min() > 0.45, person.min()
