@@ -26,7 +26,7 @@ from boids_env.world.leader import ExternalLeader, Leader, make_leader, preview_
 from boids_env.world.person import make_person
 from boids_env.world.realism import Realism
 from boids_env.world.robots import RobotModel, odometry_velocities
-from boids_env.world.safety import People, filter_commands
+from boids_env.world.safety import filter_commands, people_around
 from boids_env.world.scenario import ScenarioConfig
 from boids_env.world.space import Snapshot, World
 
@@ -487,30 +487,17 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             commands = filter_commands(commands, world.positions, world.velocities, full[0],
                                        cfg.world.robot_radius, cfg.world.max_speed,
                                        self._scene, cfg.safety,
-                                       self._people_near(full[0], crowd))
+                                       people_around(world.positions[0], full[0],
+                                                     None if crowd is None
+                                                     else world.pedestrian_positions,
+                                                     crowd, cfg.scenario.person_radius,
+                                                     cfg.scenario.leader != "robot"))
         lead = full[0]
         self._still_steps = 0 if lead[0] != 0.0 or lead[1] != 0.0 else self._still_steps + 1
         if native:
             full[0] = world.model.native(full[:1], world.heading_vectors[:1])[0]
         full[1:] = commands
         return _Plan(full, crowd, native)
-
-    def _people_near(self, leader_command: npt.NDArray[np.float64],
-                     crowd: npt.NDArray[np.float64] | None) -> People | None:
-        """The people the safety filter keeps the followers off (None: none): a person
-        leading (moving at its command this step) and the crowd's pedestrians (at theirs)."""
-        world, sc = self._world, self.episode_config.scenario
-        assert world is not None
-        leads = sc.leader != "robot"
-        if not leads and crowd is None:
-            return None
-        positions = [world.positions[:1]] if leads else []
-        velocities = [leader_command[None, :]] if leads else []
-        if crowd is not None:
-            positions.append(world.pedestrian_positions)
-            velocities.append(crowd)
-        return People(np.concatenate(positions), np.concatenate(velocities),
-                      sc.person_radius, leads)
 
     def _physics(self, plan: _Plan) -> None:
         """Steps the world with the planned commands (realism between, if on) and records

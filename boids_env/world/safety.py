@@ -252,6 +252,24 @@ class People:
     person_leads: bool = False
 
 
+def people_around(leader_position: FloatArray, leader_velocity: FloatArray,
+                  pedestrians: FloatArray | None, pedestrian_velocities: FloatArray | None,
+                  radius: float, person_leads: bool) -> People | None:
+    """The :class:`People` of a step (None: neither a person leading nor pedestrians): the
+    leader (2,) when a person leads, moving at ``leader_velocity``, then the pedestrians
+    (P, 2) at theirs."""
+    crowd = pedestrians is not None and pedestrian_velocities is not None \
+        and len(pedestrians) > 0
+    if not person_leads and not crowd:
+        return None
+    positions = [np.reshape(leader_position, (1, 2))] if person_leads else []
+    velocities = [np.reshape(leader_velocity, (1, 2))] if person_leads else []
+    if crowd:
+        positions.append(np.asarray(pedestrians, dtype=np.float64))
+        velocities.append(np.asarray(pedestrian_velocities, dtype=np.float64))
+    return People(np.concatenate(positions), np.concatenate(velocities), radius, person_leads)
+
+
 def people_constraints(followers: FloatArray, people: People, radius: float,
                        config: SafetyConfig) -> tuple[FloatArray, FloatArray]:
     """The half-planes of the :data:`PEOPLE_ROWS` nearest people within reach of each

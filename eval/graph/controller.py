@@ -27,7 +27,7 @@ from boids_env.policies.registry import load_policy, split_preset
 from boids_env.vectors import clip_speed
 from boids_env.world.realism import StaleObservations
 from boids_env.world.robots import make_model, quaternion_headings, to_world
-from boids_env.world.safety import People, filter_commands
+from boids_env.world.safety import filter_commands, people_around
 from boids_env.world.scenario import holding
 
 SYNC_MODES = ("stamp", "rate")
@@ -225,31 +225,17 @@ class ControllerCore:
         the in-process env knows and a controller node does not. A person leading and the
         pedestrians are kept off as the env keeps them (at their own width), at their
         odometry velocities (the env uses their commands)."""
-        w = self.config.world
+        w, sc = self.config.world, self.config.scenario
         world = clip_speed(self.observer.to_world(raw), w.max_speed)
         if self._holding(tick.stamp_ns):
             world = np.zeros_like(world)
         world = filter_commands(world, tick.positions, velocities, velocities[0],
                                 w.robot_radius, w.max_speed, self.config.scene,
-                                self.config.safety, self._people(tick, velocities))
+                                self.config.safety,
+                                people_around(tick.positions[0], velocities[0],
+                                              tick.crowd_positions, tick.crowd_velocities,
+                                              sc.person_radius, sc.leader != "robot"))
         return world if headings is None else self.model.native(world, headings[1:])
-
-    def _people(self, tick: Tick, velocities: np.ndarray) -> People | None:
-        """The people the safety filter keeps off (None: none): a person leading (robot 0)
-        and the pedestrians of the tick's odometry."""
-        sc = self.config.scenario
-        leads = sc.leader != "robot"
-        crowd = tick.crowd_positions is not None and tick.crowd_velocities is not None \
-            and len(tick.crowd_positions) > 0
-        if not leads and not crowd:
-            return None
-        positions = [tick.positions[:1]] if leads else []
-        moving = [velocities[:1]] if leads else []
-        if crowd:
-            positions.append(np.asarray(tick.crowd_positions, dtype=np.float64))
-            moving.append(np.asarray(tick.crowd_velocities, dtype=np.float64))
-        return People(np.concatenate(positions), np.concatenate(moving), sc.person_radius,
-                      person_leads=leads)
 
     def world_forces(self) -> dict[str, np.ndarray]:
         """The policy's rule forces of the last answer in the world frame (empty for a policy

@@ -317,9 +317,9 @@ def test_wide_pedestrians_start_apart_or_are_refused_never_a_crash():
     assert min(gaps) >= 1.1, gaps
 
 
-def test_the_ros_graph_controller_switches_learned_buildings_on_its_own_sight_test():
-    # learned-buildings reads which followers see the leader from the controller's own
-    # observer (the controller node builds the observations, not the env)
+def _lockstep(policy_name, fields):
+    """A lockstep graph core of ``fields`` and a controller node of ``policy_name`` over the
+    loopback: ``(core, controller, episode)``, ``episode()`` running seed 0."""
     from boids_env.eval.graph.controller import (
         ControllerCore,
         ControllerOptions,
@@ -327,19 +327,28 @@ def test_the_ros_graph_controller_switches_learned_buildings_on_its_own_sight_te
     )
     from boids_env.eval.graph.sim import SimCore, SimOptions
 
-    options = ControllerOptions(policy="learned-buildings", quiet=True)
-    policy = controller_policy(options)
-    fields = {**policy.env_fields, "scene": "floorplan:1016", "robots": 7, "max_cycles": 80}
+    options = ControllerOptions(policy=policy_name, quiet=True)
     core = SimCore(SimOptions(env_fields=fields, lockstep=True, quiet=True))
-    transport = None
+    loop = None
 
-    def episode(_stamp):
-        return transport.info
+    def info(_stamp):
+        return loop.info
 
-    controller = ControllerCore(options, policy, core.config, "/c", episode)
+    controller = ControllerCore(options, controller_policy(options), core.config, "/c", info)
+    loop = _Loopback(controller)
+    return core, controller, lambda: core.run_episode(0, loop)
+
+
+def test_the_ros_graph_controller_switches_learned_buildings_on_its_own_sight_test():
+    # learned-buildings reads which followers see the leader from the controller's own
+    # observer (the controller node builds the observations, not the env)
+    from boids_env.policies.registry import load_policy
+
+    fields = {**load_policy("learned-buildings").env_fields, "scene": "floorplan:1016",
+              "robots": 7, "max_cycles": 80}
+    _, controller, episode = _lockstep("learned-buildings", fields)
     assert controller.leader_hidden is None  # no tick yet
-    transport = _Loopback(controller)
-    ours = core.run_episode(0, transport)
+    ours = episode()
     assert ours.recording.positions.shape == (81, 7, 2)
     assert ours.stats["rejected_commands"] == 0
     hidden = controller.leader_hidden
@@ -350,27 +359,12 @@ def test_the_ros_graph_controller_applies_the_safety_filter_a_model_was_trained_
     # learned-scenes acts through the safety filter (its env fields): the controller node
     # filters its commands too, so a bare simulator (or real robots) gets them filtered.
     # Without it the flock touched 31 % of this episode (0 % in-process).
-    from boids_env.eval.graph.controller import (
-        ControllerCore,
-        ControllerOptions,
-        controller_policy,
-    )
-    from boids_env.eval.graph.sim import SimCore, SimOptions
     from boids_env.eval.run import run
 
     fields = dict(scene="small_room", robots=13, max_cycles=300)
-    options = ControllerOptions(policy="learned-scenes", quiet=True)
-    core = SimCore(SimOptions(env_fields=fields, lockstep=True, quiet=True))  # no filter
-    assert not core.config.safety.safety_filter
-    transport = None
-
-    def episode(_stamp):
-        return transport.info
-
-    controller = ControllerCore(options, controller_policy(options), core.config, "/c",
-                                episode)
-    transport = _Loopback(controller)
-    ours = core.run_episode(0, transport).recording
+    core, _, episode = _lockstep("learned-scenes", fields)
+    assert not core.config.safety.safety_filter  # no filter in the simulator
+    ours = episode().recording
     reference = run("learned-scenes", out=None, seed=0, quiet=True, env_fields=fields)
     # the same episode as in-process until the leader's odometry (which the node filters
     # against) and its command (which the env uses) first lead to other bits
@@ -388,26 +382,11 @@ def test_the_ros_graph_controller_applies_the_safety_filter_a_model_was_trained_
 def test_the_ros_graph_controller_keeps_the_person_and_the_crowd_off_as_the_env_does():
     # the controller node filters learned-crowd's commands against the person's and the
     # pedestrians' odometry: through the lockstep graph nobody reaches the person's zone
-    from boids_env.eval.graph.controller import (
-        ControllerCore,
-        ControllerOptions,
-        controller_policy,
-    )
-    from boids_env.eval.graph.sim import SimCore, SimOptions
 
-    options = ControllerOptions(policy="learned-crowd", quiet=True)
-    policy = controller_policy(options)
     fields = {"leader": "person", "crowd": 8, "scene": "floorplan:1004", "robots": 7,
               "max_cycles": 400}
-    core = SimCore(SimOptions(env_fields=fields, lockstep=True, quiet=True))  # no filter
-    assert not core.config.safety.safety_filter
-    transport = None
-
-    def episode(_stamp):
-        return transport.info
-
-    controller = ControllerCore(options, policy, core.config, "/c", episode)
-    transport = _Loopback(controller)
-    positions = core.run_episode(0, transport).recording.positions
+    core, _, episode = _lockstep("learned-crowd", fields)
+    assert not core.config.safety.safety_filter  # no filter in the simulator
+    positions = episode().recording.positions
     person = np.linalg.norm(positions[:, 1:] - positions[:, :1], axis=2)
     assert person.min() > 0.45, person.min()
