@@ -13,7 +13,11 @@ command v must satisfy one half-plane:
   n (both are filtered, each takes half, and the pair's rows add up to n·(v_i − v_j) ≤
   s_i∧s_j − s_i∨s_j + α·h ≤ α·h: the reciprocal split of ORCA; a flock moving together is
   not slowed, and a robot never pushes one that has stopped in front of it);
-- the leader, which is never filtered: n·v ≤ α·h + n·v_leader (its command this step).
+- the leader, which is never filtered: n·v ≤ α·h + n·v_leader (its command this step);
+- a person leading and the nearest pedestrians, as the leader at their own width or at the
+  distance asked (:func:`people_constraints`), and optionally the strip ahead of a walking
+  person (``safety_person_path``, :func:`person_path_constraints`): with e its walking
+  direction and l a follower's offset across it, σ·e⊥·(v − v_person) ≥ −α·(σ·l − w).
 
 α is ``safety_gain`` (1/s): a robot closes on anything at most α times its gap per second, so
 the gap decays at most exponentially and never reaches zero (h ≥ 0 is kept forward
@@ -52,6 +56,9 @@ FloatArray = npt.NDArray[np.float64]
 PEOPLE_ROWS = 4
 """People (a person leading, pedestrians) that constrain each follower: the nearest ones
 within reach."""
+PATH_MIN_SPEED = 0.2
+"""A person leading walks (and its path is kept clear, ``safety_person_path``) from this
+speed (m/s) on: the cut-in metric's threshold (:data:`boids_env.proxemics.CUT_IN_MIN_SPEED`)."""
 STATIC_POINTS = 4
 """Surface points of static geometry per follower: the nearest in up to four directions
 more than 45° apart (a corridor's two walls, a corner's two sides)."""
@@ -90,6 +97,15 @@ class SafetyConfig:
     (a person who walks at one still gets there). 0: their bodies, as for robots."""
     safety_pedestrian_distance: float = 0.0
     """The same for each pedestrian of a crowd (0: their bodies)."""
+    safety_person_path: float = 0.0
+    """Seconds of a walking person's path ahead that the filter keeps clear (0: off). A
+    follower ahead of a person leading who walks (from 0.2 m/s), within the distance the
+    person covers in this time plus the distance kept from it, keeps its centre at least
+    that kept distance to the side of the person's line of walking: one stepping into the
+    strip is held back, one inside it steps out sideways. A robot straight ahead of a
+    person walking as fast as it can drive cannot keep its distance by backing away; out
+    of the way it can. Its rows yield to the walls, the leader's and the people's rows
+    where they cannot all hold."""
 
     def __post_init__(self) -> None:
         _set(self, "safety_filter", _flag("safety_filter", self.safety_filter))
@@ -103,6 +119,9 @@ class SafetyConfig:
                                                  0, 64))
         for name in ("safety_person_distance", "safety_pedestrian_distance"):
             _set(self, name, _number(name, getattr(self, name), 0.0, 3.0, unit="m"))
+        _set(self, "safety_person_path", _number("safety_person_path",
+                                                 self.safety_person_path, 0.0, 10.0,
+                                                 unit="s"))
 
 
 def barrier_constraints(positions: FloatArray, velocities: FloatArray,
@@ -303,6 +322,39 @@ def people_constraints(followers: FloatArray, people: People, radius: float,
     return a, b
 
 
+def person_path_constraints(followers: FloatArray, people: People, radius: float,
+                            config: SafetyConfig) -> tuple[FloatArray, FloatArray]:
+    """The half-plane that keeps each follower (F, 2) out of a walking person's path
+    (``safety_person_path``; :class:`SafetyConfig`): with e the person's walking direction,
+    l a follower's signed offset across it and w the distance kept from the person, a
+    follower ahead of the person within its speed × ``safety_person_path`` + w satisfies
+    σ·e⊥·(v − v_person) ≥ −α·(σ·l − w), σ the side it is on (the left where l = 0): the
+    barrier of the strip of half-width w, which moves it sideways out of the strip at up to
+    α times its depth. ``(a (F, 1, 2), b (F, 1))``; rows off (a = 0) elsewhere."""
+    f = len(followers)
+    a, b = np.zeros((f, 1, 2)), np.full((f, 1), _FREE)
+    if not (people.person_leads and config.safety_person_path > 0.0 and f):
+        return a, b
+    velocity = people.velocities[0]
+    speed = float(np.sqrt(velocity[0] ** 2 + velocity[1] ** 2))
+    if speed < PATH_MIN_SPEED:
+        return a, b
+    keep = max(config.safety_person_distance, people.radius + radius) + config.safety_margin
+    ex, ey = velocity[0] / speed, velocity[1] / speed
+    rel = followers - people.positions[0]
+    along = rel[:, 0] * ex + rel[:, 1] * ey
+    across = rel[:, 1] * ex - rel[:, 0] * ey  # along e⊥ = (−e_y, e_x)
+    side = np.where(across < 0.0, -1.0, 1.0)
+    depth = side * across - keep
+    on = (along > 0.0) & (along <= speed * config.safety_person_path + keep) \
+        & (depth <= config.safety_range)
+    across_velocity = velocity[1] * ex - velocity[0] * ey  # 0 up to rounding
+    a[:, 0, 0] = np.where(on, side * ey, 0.0)
+    a[:, 0, 1] = np.where(on, -side * ex, 0.0)
+    b[:, 0] = np.where(on, config.safety_gain * depth - side * across_velocity, _FREE)
+    return a, b
+
+
 def filter_commands(commands: FloatArray, positions: FloatArray, velocities: FloatArray,
                     leader_velocity: FloatArray, radius: float, max_speed: float, scene: Scene,
                     config: SafetyConfig, people: People | None = None) -> FloatArray:
@@ -335,5 +387,10 @@ def filter_commands(commands: FloatArray, positions: FloatArray, velocities: Flo
         a = np.concatenate([a, a_p], axis=1)
         b = np.concatenate([b, b_p], axis=1)
         hard = np.concatenate([hard, np.ones(b_p.shape, dtype=bool)], axis=1)
+        if leads and config.safety_person_path > 0.0:
+            a_w, b_w = person_path_constraints(positions[1:], people, radius, config)
+            a = np.concatenate([a, a_w], axis=1)
+            b = np.concatenate([b, b_w], axis=1)
+            hard = np.concatenate([hard, np.zeros(b_w.shape, dtype=bool)], axis=1)
     return clip_speed(nearest_allowed(np.asarray(commands, dtype=float), a, b, hard),
                       max_speed)

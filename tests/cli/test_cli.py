@@ -174,7 +174,8 @@ def _recipes():
 
 
 def test_the_recipes_are_the_documented_ones():
-    assert _recipes() == ["ppo_buildings", "ppo_buildings_stage2", "ppo_crowd", "ppo_person",
+    assert _recipes() == ["ppo_buildings", "ppo_buildings_stage2", "ppo_crowd", "ppo_crowd_stage2",
+                          "ppo_person",
                           "ppo_safe", "ppo_safe_stage2", "ppo_scenes",
                           "ppo_scenes_stage2", "ppo_scenes_stage3", "ppo_scenes_stage4",
                           "ppo_scenes_stage5", "ppo_scenes_stage6", "ppo_scenes_stage7",

@@ -21,6 +21,7 @@ def _run(**change):
 def test_learned_crowd_keeps_the_persons_intimate_zone_and_follows():
     policy = load_policy("learned-crowd")
     assert policy.env_fields["safety_person_distance"] == 0.45
+    assert policy.env_fields["safety_person_path"] == 2.0
     assert policy.env_fields["safety_filter"] is True
     kept = _run()
     # 20 s behind a person through a held-out plan among 8 pedestrians: nobody on the person,

@@ -205,3 +205,62 @@ def test_pedestrians_are_kept_off_as_far_as_the_robots_can():
     assert (free < bodies).mean() > 0.05
     assert (kept < bodies).mean() < 0.3 * (free < bodies).mean()
     assert (kept < 0.45).mean() < 0.6 * (free < 0.45).mean()
+
+
+def test_person_path_constraints_on_hand_computed_geometry():
+    """A person at the origin walking east at 0.5 m/s (radius 0.22 m), kept 0.45 + 0.03 m off,
+    path 2 s: the strip ahead reaches 0.5 × 2 + 0.48 = 1.48 m. A follower 0.6 m ahead and
+    0.1 m to the left is 0.38 m inside the strip: it must move left at 2 × 0.38 m/s; one
+    0.8 m to the right is 0.32 m outside it: it may close at most 2 × 0.32 m/s; one straight
+    ahead takes the left; one behind the person or beyond the strip's end has no row, nor
+    has anyone while the person stands."""
+    from boids_env.world.safety import People, person_path_constraints
+
+    config = SafetyConfig(safety_filter=True, safety_margin=0.03, safety_gain=2.0,
+                          safety_range=0.5, safety_person_distance=0.45,
+                          safety_person_path=2.0)
+    walking = People(np.zeros((1, 2)), np.array([[0.5, 0.0]]), 0.22, person_leads=True)
+    followers = np.array([[0.6, 0.1], [0.6, -0.8], [1.0, 0.0], [-0.3, 0.0], [1.6, 0.0]])
+    a, b = person_path_constraints(followers, walking, 0.036, config)
+    # a·v ≤ b: left is +y, so moving left at ≥ s is −v_y ≤ −s
+    np.testing.assert_allclose(a[:, 0], [[0, -1], [0, 1], [0, -1], [0, 0], [0, 0]],
+                               atol=1e-15)
+    np.testing.assert_allclose(b[:3, 0], [-2 * 0.38, 2 * 0.32, -2 * 0.48], atol=1e-12)
+    assert (b[3:, 0] == FREE).all()
+    standing = People(np.zeros((1, 2)), np.array([[0.1, 0.0]]), 0.22, person_leads=True)
+    assert (person_path_constraints(followers, standing, 0.036, config)[1] == FREE).all()
+    off = SafetyConfig(safety_filter=True, safety_person_distance=0.45)
+    assert (person_path_constraints(followers, walking, 0.036, off)[1] == FREE).all()
+    with pytest.raises(ValueError, match="safety_person_path"):
+        SafetyConfig(safety_person_path=-1.0)
+
+
+def _ahead_of_the_person(path, steps=900):
+    """Followers driven to a point 0.6 m ahead of a person walking the square at 0.5 m/s
+    (a robot cannot outrun it backwards): each follower-step's centre distance to it."""
+    env = parallel_env(leader="person", safety_filter=True, safety_person_distance=0.45,
+                       safety_person_path=path, leader_speed=0.5, robots=7)
+    env.reset(seed=2)
+    distances = []
+    for _ in range(steps):
+        world = env.unwrapped._world
+        velocity = world.velocities[0]
+        speed = np.linalg.norm(velocity)
+        heading = velocity / speed if speed > 0.1 else np.array([1.0, 0.0])
+        offset = world.positions[0] + 0.6 * heading - world.positions[1:]
+        commands = 0.5 * offset / np.maximum(np.linalg.norm(offset, axis=1, keepdims=True),
+                                             1e-9)
+        env.step({agent: commands[k] for k, agent in enumerate(env.agents)})
+        if not env.agents:
+            break
+        world = env.unwrapped._world
+        distances.append(np.linalg.norm(world.positions[1:] - world.positions[0], axis=1))
+    return np.array(distances)
+
+
+def test_a_walking_persons_path_is_kept_clear_where_backing_off_is_not_enough():
+    """Followers that try to walk in front of the person: keeping 0.45 m off by backing away
+    fails where the person walks as fast as they drive (the person reaches 0.39 m); with
+    the path kept clear they step aside and never come within 0.45 m."""
+    assert _ahead_of_the_person(0.0).min() < 0.42
+    assert _ahead_of_the_person(2.0).min() > 0.45
