@@ -859,6 +859,25 @@ class ReynoldsParams:
     holonomic one), so a robot that must turn to steer away starts that much earlier. A
     holonomic Sphero's parameters are unchanged."""
 
+    path_time: float = 2.0
+    """Seconds of the leader's travel the strip ahead of it covers when ``personal_space`` is
+    on (its length: ``path_time`` × the leader's speed + ``personal_space``). Grown by the
+    robot's quarter-turn time with ``scale_to_robot``."""
+    path_flee: float = 0.0
+    """Weight of the push along the leader's travel out of the strip's far end (m per m of
+    strip left), 0: off (the strip only pushes sideways). When on, the leader term's pull
+    towards the leader is dropped inside the strip, the strip follows a robot leader's
+    heading while it is slower than ``path_speed`` (it turns in place before it drives), and
+    the strip counts the leader as moving from ``path_speed``."""
+    path_width: float = 0.0
+    """Half-width (m, centre to centre) of the strip ahead of the leader (0: ``personal_space``)."""
+    walls_first: bool = False
+    """Serve the walls' (and people's) push before other robots' (``robot_avoidance``), and
+    drop the part of a robot's push against it, so that a follower squeezed between a
+    neighbour and a wall is not held against the wall (preset ``scaled``)."""
+    path_speed: float = 0.2
+    """The leader's speed (m/s) from which the strip ahead of it is kept clear."""
+
     def __post_init__(self) -> None:
         if self.obstacle_avoidance is not None:
             _set(self, "obstacle_avoidance", _flag("obstacle_avoidance",
@@ -870,6 +889,12 @@ class ReynoldsParams:
                                                  0.0, 60, unit="s"))
         _set(self, "personal_space", _number("personal_space", self.personal_space, 0.0, 5.0,
                                              unit="m"))
+        _set(self, "path_time", _number("path_time", self.path_time, 0.0, 60, unit="s"))
+        _set(self, "path_flee", _number("path_flee", self.path_flee, 0.0, 100))
+        _set(self, "path_width", _number("path_width", self.path_width, 0.0, 5, unit="m"))
+        _set(self, "path_speed", _number("path_speed", self.path_speed, 0.0, 5, lo_open=True,
+                                         unit="m/s"))
+        _set(self, "walls_first", _flag("walls_first", self.walls_first))
         _set(self, "follow_route", _flag("follow_route", self.follow_route))
         _set(self, "scale_to_robot", _flag("scale_to_robot", self.scale_to_robot))
         _set(self, "robot_avoidance", _number("robot_avoidance", self.robot_avoidance, 0.0, 5.0,
@@ -903,7 +928,8 @@ PRESETS: dict[str, ReynoldsParams] = {
     # ahead of the leader (the proxemic leader term along the route), so that robots larger
     # than a Sphero never pack into contact nor meet a leader backing out of a dead end.
     "scaled": ReynoldsParams(follow_route=True, robot_avoidance=0.15, personal_space=0.56,
-                             scale_to_robot=True),
+                             scale_to_robot=True, path_width=0.3, path_flee=0.5,
+                             walls_first=True),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
 
