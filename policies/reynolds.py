@@ -22,6 +22,13 @@ Beyond the study, preset ``scaled`` (issue 38) sizes the controller for the robo
 bodies) and follows the route with the proxemic leader term along it: F_lead = r − s·r/|r|
 with r the route term above, plus the push out of the leader's path ahead (below), so a
 follower steps aside for a leader backing out of a dead end instead of fleeing before it.
+For a robot with a heading (it must turn before it moves; ``path_width`` > 0,
+:func:`clear_path`) the strip ahead is ``path_width`` wide (sized), ``path_time`` grown by
+the quarter-turn time long, lies along the leader's heading while it stands or turns in
+place, and inside it the ring's pull is dropped and a push ``path_flee``·(length − a) along
+the leader's travel is added; the ring's radius grows by ``max_speed`` × the quarter-turn
+time; and with ``walls_first`` the walls' push is served before the other robots'
+(:func:`walls_then_robots`).
 
 Beyond the study (on in any scene but the study's empty arena, see ``obstacle_avoidance``):
 - obstacle   F_obs = −max_force · Σ_m s_m · n_m over the static slots m (n_m the unit vector
@@ -350,6 +357,9 @@ def bound_params(params: ReynoldsParams, own: frozenset[str] | set[str], config:
     return dataclasses.replace(params, **changes) if changes else params
 
 
+ARENA_STATIC_SLOTS = 4
+"""Static slots a route-following preset that always avoids obstacles (``scaled``) asks
+the env for, so that it senses the study's arena walls too (any other scene has 4)."""
 STUDY_RADIUS = 0.036
 """The study's Sphero's radius (m): the size the distances of a preset are given for."""
 
@@ -429,6 +439,8 @@ class ReynoldsPolicy(BatchPolicy):
         self._steps = 0
         if self.params.follow_route:  # the route preset reads the env's route sensing
             self.env_fields = {"route_sensing": True}
+            if self.params.obstacle_avoidance:  # walls sensed in the study's arena too
+                self.env_fields["static_slots"] = ARENA_STATIC_SLOTS
 
     def bind(self, env: Any) -> None:
         """Reads ``env``'s observation layout, whether its scene is the study's arena (any

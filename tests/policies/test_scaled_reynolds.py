@@ -175,3 +175,11 @@ def test_a_neighbour_does_not_hold_a_follower_against_a_wall():
 def test_the_path_clearing_parameters_are_validated(name, value):
     with pytest.raises(ValueError, match=f"{name} must be .*, got"):
         dataclasses.replace(ReynoldsParams(), **{name: value})
+
+
+def test_the_scaled_preset_senses_and_avoids_the_arena_walls_too():
+    # the study's arena has no static slots by default; the scaled preset asks for them
+    assert ReynoldsPolicy("scaled").env_fields == {"route_sensing": True, "static_slots": 4}
+    assert ReynoldsPolicy("route").env_fields == {"route_sensing": True}  # unchanged
+    policy, env = _bound("scaled", "turtlebot3_burger")
+    assert env.config.world.scene == "arena" and policy.avoid
