@@ -855,9 +855,36 @@ class ReynoldsParams:
     centre-to-centre distances ``desired_separation`` and ``personal_space`` grow by 2·(r − r0)
     and the centre-to-surface ``obstacle_distance`` by r − r0, so the free gaps between bodies
     stay the ones given for the Sphero (``robot_avoidance`` is a surface gap already), and
-    ``obstacle_lookahead`` grows by the time the robot needs to turn a quarter turn (0 for a
-    holonomic one), so a robot that must turn to steer away starts that much earlier. A
-    holonomic Sphero's parameters are unchanged."""
+    ``obstacle_lookahead`` and ``path_time`` grow by the time the robot needs to turn a
+    quarter turn (0 for a holonomic one), so a robot that must turn to steer away starts that
+    much earlier; ``personal_space`` also grows by ``max_speed`` × that time (the way a
+    leader at the robots' top speed comes while a follower turns), and ``path_width`` (when
+    on) by 2·(r − r0). A holonomic Sphero's parameters are unchanged."""
+
+    path_width: float = 0.0
+    """For robots with a heading (they turn before they move), with ``follow_route`` and
+    ``personal_space`` on: half-width (m, centre to centre) of the strip ahead of the leader
+    that is kept clear (preset ``scaled``: 0.3, sized for the robot). Inside it the leader
+    term does not pull towards the leader; it pushes sideways to ``path_width`` from the
+    leader's line and forwards by ``path_flee``; the strip lies along the leader's velocity
+    from ``path_speed`` on and along its heading below (a robot leader turning in place
+    drives off along it) and reaches ``path_time`` × max(its speed, ``max_speed``) +
+    ``personal_space`` ahead. 0: off (the proxemic strip of ``personal_space``, 2 s)."""
+    path_time: float = 2.0
+    """Seconds of the leader's travel the ``path_width`` strip covers (grown by the robot's
+    quarter-turn time with ``scale_to_robot``)."""
+    path_flee: float = 0.0
+    """Weight of the ``path_width`` strip's push along the leader's travel (m per m of strip
+    left ahead): a follower that cannot step aside (a corridor) moves on ahead of the
+    leader. Preset ``scaled``: 0.5."""
+    walls_first: bool = False
+    """For robots with a heading, with ``robot_avoidance`` on: serve the walls' (and
+    people's) push before other robots', and drop a quarter of a robot's push against it,
+    so that a follower squeezed between a neighbour and a wall is not held against the wall
+    (preset ``scaled``). Off: the pushes are summed."""
+    path_speed: float = 0.2
+    """The ``path_width`` strip follows the leader's velocity from this speed (m/s) on, its
+    heading below."""
 
     def __post_init__(self) -> None:
         if self.obstacle_avoidance is not None:
@@ -870,6 +897,12 @@ class ReynoldsParams:
                                                  0.0, 60, unit="s"))
         _set(self, "personal_space", _number("personal_space", self.personal_space, 0.0, 5.0,
                                              unit="m"))
+        _set(self, "path_time", _number("path_time", self.path_time, 0.0, 60, unit="s"))
+        _set(self, "path_flee", _number("path_flee", self.path_flee, 0.0, 100))
+        _set(self, "path_width", _number("path_width", self.path_width, 0.0, 5, unit="m"))
+        _set(self, "path_speed", _number("path_speed", self.path_speed, 0.0, 5, lo_open=True,
+                                         unit="m/s"))
+        _set(self, "walls_first", _flag("walls_first", self.walls_first))
         _set(self, "follow_route", _flag("follow_route", self.follow_route))
         _set(self, "scale_to_robot", _flag("scale_to_robot", self.scale_to_robot))
         _set(self, "robot_avoidance", _number("robot_avoidance", self.robot_avoidance, 0.0, 5.0,
@@ -901,9 +934,13 @@ PRESETS: dict[str, ReynoldsParams] = {
     "route": ReynoldsParams(follow_route=True, robot_avoidance=0.15),
     # Beyond the study: route following sized for the robot (issue 38), and a clear path
     # ahead of the leader (the proxemic leader term along the route), so that robots larger
-    # than a Sphero never pack into contact nor meet a leader backing out of a dead end.
+    # than a Sphero never pack into contact nor meet a leader backing out of a dead end. For
+    # a robot with a heading (it turns before it moves) the path is cleared earlier and wider
+    # (path_width, path_flee, sized by its turning time) and walls are served before
+    # neighbours (walls_first); walls are avoided in the study's arena too.
     "scaled": ReynoldsParams(follow_route=True, robot_avoidance=0.15, personal_space=0.56,
-                             scale_to_robot=True),
+                             scale_to_robot=True, path_width=0.3, path_flee=0.5,
+                             walls_first=True, obstacle_avoidance=True),
 }
 """Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
 

@@ -22,6 +22,13 @@ Beyond the study, preset ``scaled`` (issue 38) sizes the controller for the robo
 bodies) and follows the route with the proxemic leader term along it: F_lead = r − s·r/|r|
 with r the route term above, plus the push out of the leader's path ahead (below), so a
 follower steps aside for a leader backing out of a dead end instead of fleeing before it.
+For a robot with a heading (it must turn before it moves; ``path_width`` > 0,
+:func:`clear_path`) the strip ahead is ``path_width`` wide (sized), ``path_time`` grown by
+the quarter-turn time long, lies along the leader's heading while it stands or turns in
+place, and inside it the ring's pull is dropped and a push ``path_flee``·(length − a) along
+the leader's travel is added; the ring's radius grows by ``max_speed`` × the quarter-turn
+time; and with ``walls_first`` the walls' push is served before the other robots'
+(:func:`walls_then_robots`).
 
 Beyond the study (on in any scene but the study's empty arena, see ``obstacle_avoidance``):
 - obstacle   F_obs = −max_force · Σ_m s_m · n_m over the static slots m (n_m the unit vector
@@ -166,6 +173,47 @@ def path_push(leader_offset: FloatArray, leader_velocity: FloatArray, space: flo
     return np.stack([-ey * push, ex * push], axis=1)
 
 
+WALL_YIELD = 0.25
+"""With ``walls_first``: the fraction of a neighbour's push against a wall's push that is
+dropped (all of it squeezes robots into each other, none holds them against the wall)."""
+
+
+def clear_path(route: FloatArray, leader_offset: FloatArray, leader_velocity: FloatArray,
+               leader_heading: FloatArray, p: ReynoldsParams) -> FloatArray:
+    """The leader term (F, 2, in m) along the route for robots that turn before they move
+    (``path_width`` > 0, robots with a heading): the ring of radius ``personal_space`` round
+    the leader, except inside the strip ahead of it, which is pushed clear sideways (to
+    ``path_width`` from its line) and forwards (``path_flee`` × the strip left ahead).
+
+    The strip lies along the leader's velocity while it moves (from ``path_speed``), along
+    its heading while it stands or turns in place (it drives off along it), and reaches
+    ``path_time`` × max(its speed, ``max_speed``) + ``personal_space`` ahead of it.
+
+    Args:
+        route: (F, 2) the route term (direction × length to the leader along the route).
+        leader_offset: (F, 2) the leader relative to each follower (m, straight line).
+        leader_velocity: (F, 2) the leader's velocity (m/s).
+        leader_heading: (F, 2) the leader's heading (unit vectors).
+        p: controller parameters (sized for the robot).
+    """
+    rx, ry = leader_offset[:, 0], leader_offset[:, 1]
+    vx, vy = leader_velocity[:, 0], leader_velocity[:, 1]
+    speed = np.sqrt(vx * vx + vy * vy)
+    moving = speed >= p.path_speed
+    ex = np.where(moving, vx / np.where(moving, speed, 1.0), leader_heading[:, 0])
+    ey = np.where(moving, vy / np.where(moving, speed, 1.0), leader_heading[:, 1])
+    along = -(rx * ex + ry * ey)  # the follower relative to the leader, along its travel
+    across = -(ry * ex - rx * ey)  # … and to its left (+) or right (−)
+    length = p.path_time * np.maximum(speed, p.max_speed) + p.personal_space
+    ahead = (along > 0) & (along <= length) & (np.abs(across) < p.path_width)
+    side = np.where(across >= 0, 1.0, -1.0)
+    sideways = np.where(ahead, (p.path_width - np.abs(across)) * side, 0.0)
+    forwards = np.where(ahead, p.path_flee * (length - along), 0.0)
+    ring = np.where(ahead[:, None], 0.0, ring_force(route, p.personal_space))
+    return ring + np.stack([-ey * sideways + ex * forwards, ex * sideways + ey * forwards],
+                           axis=1)
+
+
 def pedestrian_points(slots: FloatArray, radius: float) -> tuple[FloatArray,
                                                                  npt.NDArray[np.bool_]]:
     """The nearest point of each pedestrian's body (F, P, 2) and which slots hold one, from
@@ -198,11 +246,25 @@ def obstacle_force(offsets: FloatArray, valid: npt.NDArray[np.bool_], own_veloci
     return -p.max_force * np.einsum("fm,fmd->fd", strength, towards)
 
 
+def walls_then_robots(walls: FloatArray, robots: FloatArray, limit: float) -> FloatArray:
+    """The obstacle force (F, 2) with walls served before robots: ``walls`` clipped to
+    ``limit``, then ``robots`` without its part against the walls' push (a neighbour never
+    pushes a follower into a wall), within what is left of ``limit``."""
+    first = clip_norm(walls, limit)
+    norm = np.sqrt(first[:, 0] * first[:, 0] + first[:, 1] * first[:, 1])
+    unit = first / np.where(norm > 0, norm, 1.0)[:, None]
+    against = np.minimum(np.einsum("fd,fd->f", robots, unit), 0.0) * WALL_YIELD
+    rest = robots - against[:, None] * unit
+    return first + clip_norm_each(rest, limit - norm)
+
+
 def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
-                     p: ReynoldsParams) -> tuple[FloatArray, dict[str, FloatArray]]:
+                     p: ReynoldsParams, robots: FloatArray | None = None
+                     ) -> tuple[FloatArray, dict[str, FloatArray]]:
     """Combines the rule forces into the commanded velocity; returns it and weighted forces.
     An ``obstacle`` force, when given, is served first (the others share the rest of
-    ``max_force``)."""
+    ``max_force``); ``robots`` (other robots as obstacle points, ``walls_first``) after the
+    walls' and people's part of it."""
     weights = {"separation": p.separation_weight, "cohesion": p.cohesion_weight,
                "alignment": p.alignment_weight, "leader": p.leader_weight}
     weighted = {name: weights[name] * forces[name] for name in RULES}
@@ -210,6 +272,10 @@ def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
     if OBSTACLE in forces:
         weighted[OBSTACLE] = p.obstacle_weight * forces[OBSTACLE]
         first = clip_norm(weighted[OBSTACLE], p.max_force)
+        if robots is not None:
+            first = walls_then_robots(weighted[OBSTACLE], p.obstacle_weight * robots,
+                                      p.max_force)
+            weighted[OBSTACLE] = first
         left = p.max_force - np.sqrt(first[:, 0] * first[:, 0] + first[:, 1] * first[:, 1])
         rest = clip_norm_each(sum(weighted[name] for name in RULES), left)
         pushed = np.any(first != 0.0, axis=1)[:, None]
@@ -291,6 +357,9 @@ def bound_params(params: ReynoldsParams, own: frozenset[str] | set[str], config:
     return dataclasses.replace(params, **changes) if changes else params
 
 
+ARENA_STATIC_SLOTS = 4
+"""Static slots a route-following preset that always avoids obstacles (``scaled``) asks
+the env for, so that it senses the study's arena walls too (any other scene has 4)."""
 STUDY_RADIUS = 0.036
 """The study's Sphero's radius (m): the size the distances of a preset are given for."""
 
@@ -314,17 +383,24 @@ def sized_params(params: ReynoldsParams, radius: float, turn: float = 0.0,
     (``scale_to_robot``, :func:`turn_time`): centre-to-centre distances
     (``desired_separation``, ``personal_space`` when on) 2·Δradius longer, the
     centre-to-surface ``obstacle_distance`` Δradius longer, so the free gaps stay the same,
-    and the ``obstacle_lookahead`` Δturn longer, so a robot that must turn before it can steer
-    away starts that much earlier. ``params`` itself for the same robot."""
+    and the ``obstacle_lookahead`` and the leader's path ahead (``path_time``) Δturn longer,
+    so a robot that must turn before it can steer away starts that much earlier; the
+    ``personal_space`` also grows by ``max_speed`` × Δturn, the way a leader at the robots'
+    top speed comes while a follower turns to step aside. The strip's half-width
+    ``path_width`` (when on) is centre to centre: 2·Δradius wider. ``params`` itself for the
+    same robot."""
     grow = radius - sized_for[0]
     slower = turn - sized_for[1]
     if grow == 0.0 and slower == 0.0:
         return params
     return dataclasses.replace(
         params, desired_separation=max(params.desired_separation + 2 * grow, 0.0),
-        personal_space=max(params.personal_space + 2 * grow, 0.0) if params.personal_space
-        else 0.0, obstacle_distance=max(params.obstacle_distance + grow, 1e-3),
-        obstacle_lookahead=max(params.obstacle_lookahead + slower, 0.0))
+        personal_space=max(params.personal_space + 2 * grow + params.max_speed * slower, 0.0)
+        if params.personal_space else 0.0,
+        obstacle_distance=max(params.obstacle_distance + grow, 1e-3),
+        obstacle_lookahead=max(params.obstacle_lookahead + slower, 0.0),
+        path_width=max(params.path_width + 2 * grow, 0.0) if params.path_width else 0.0,
+        path_time=max(params.path_time + slower, 0.0))
 
 
 class ReynoldsPolicy(BatchPolicy):
@@ -346,8 +422,8 @@ class ReynoldsPolicy(BatchPolicy):
     def __init__(self, preset: str = "paper", *, layout: ObservationLayout | None = None,
                  **overrides: Any) -> None:
         self.params = reynolds_params(preset, **overrides)
-        # the robot radius and quarter-turn time self.params' distances are for
-        self._sized_for = (STUDY_RADIUS, 0.0)
+        # the parameters before sizing for the robot (scale_to_robot sizes these at each bind)
+        self._unsized = self.params
         defaults = ReynoldsParams()
         # the values the controller itself sets (given, or its preset's own): kept when bound
         # where the env allows them, the rest taken from the env
@@ -363,6 +439,8 @@ class ReynoldsPolicy(BatchPolicy):
         self._steps = 0
         if self.params.follow_route:  # the route preset reads the env's route sensing
             self.env_fields = {"route_sensing": True}
+            if self.params.obstacle_avoidance:  # walls sensed in the study's arena too
+                self.env_fields["static_slots"] = ARENA_STATIC_SLOTS
 
     def bind(self, env: Any) -> None:
         """Reads ``env``'s observation layout, whether its scene is the study's arena (any
@@ -379,11 +457,10 @@ class ReynoldsPolicy(BatchPolicy):
         self.avoid = bool(self.layout.static) and (auto if wanted is None else wanted)
         self.pedestrian_radius = config.scenario.person_radius
         self.robot_radius = config.world.robot_radius
-        self.params = bound_params(self.params, self._own, config)
+        self._unsized = bound_params(self._unsized, self._own, config)
+        self.params = self._unsized
         if self.params.scale_to_robot:
-            turn = turn_time(config.world)
-            self.params = sized_params(self.params, self.robot_radius, turn, self._sized_for)
-            self._sized_for = (self.robot_radius, turn)
+            self.params = sized_params(self.params, self.robot_radius, turn_time(config.world))
 
     def reset(self, seed: int | None = None) -> None:
         self._steps = 0
@@ -423,7 +500,12 @@ class ReynoldsPolicy(BatchPolicy):
                                                      p.personal_space)
         if p.follow_route:
             forces["leader"] = route_leader_force(obs, layout)
-            if p.personal_space > 0:  # the ring and the clear path ahead, along the route
+            if p.personal_space > 0 and p.path_width > 0 and layout.headings:
+                # a robot that turns before it moves: the path cleared earlier and wider
+                forces["leader"] = clear_path(forces["leader"], obs[:, layout.leader_position],
+                                              obs[:, layout.leader_velocity],
+                                              obs[:, layout.block("leader_heading")], p)
+            elif p.personal_space > 0:  # the ring and the clear path ahead, along the route
                 forces["leader"] = ring_force(forces["leader"], p.personal_space) + path_push(
                     obs[:, layout.leader_position], obs[:, layout.leader_velocity],
                     p.personal_space)
@@ -439,8 +521,12 @@ class ReynoldsPolicy(BatchPolicy):
                 moving = np.concatenate([np.broadcast_to(own[:, None, :], static[..., :2].shape),
                                          relative], axis=1)
             forces[OBSTACLE] = obstacle_force(points, valid, moving, p)
+        robots = None
         if crowding:
             push = robot_avoidance_force(layout.slots(obs), own, self.robot_radius, p)
-            forces[OBSTACLE] = forces[OBSTACLE] + push if OBSTACLE in forces else push
-        command, self.forces = reynolds_command(forces, own, p)
+            if p.walls_first and OBSTACLE in forces and layout.headings:
+                robots = push
+            else:
+                forces[OBSTACLE] = forces[OBSTACLE] + push if OBSTACLE in forces else push
+        command, self.forces = reynolds_command(forces, own, p, robots)
         return command.astype(np.float32)
