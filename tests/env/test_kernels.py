@@ -292,6 +292,37 @@ def test_safety_flags_kernel_matches_the_kd_tree():
     assert flags["contact"].tolist() == [False, False]
 
 
+def test_safety_and_gap_terms_kernel_gives_the_envs_numpy_terms():
+    from boids_env.metrics import leader_distance, safety_flags
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(5)
+    for trial in range(200):
+        n = int(rng.integers(2, 40))
+        positions = rng.normal(0, [0.05, 0.5, 3.0][trial % 3], (n, 2))
+        positions[n // 2] = positions[0]  # exactly on the leader: distance 0, gap 0
+        positions[-1] = positions[0] + [0.6, 0.8]  # exactly at the threshold: +0.0 gap
+        near = rng.random(n - 1) < 0.5
+        scale = -np.array([1.0, 2.5, 0.0])[:, None] * 0.1  # −0.0 for the zero weight
+        gap_scale, threshold = -10.0 * 0.1, 1.0
+        with kernels.reference():
+            flags = safety_flags(positions, 0.036, 0.15, near)
+            gap = np.maximum(leader_distance(positions) - threshold, 0.0)
+        want = np.zeros((9, n - 1))
+        want[3:6] = scale * np.stack([flags[k] for k in ("proximity", "contact", "wall")])
+        want[6:7] = gap_scale * gap[None]
+        got = np.zeros((9, n - 1))
+        compiled.safety_gap_terms(positions, near, np.ascontiguousarray(scale[:, 0]), 0.15,
+                                  2 * 0.036 + 0.001, True, gap_scale, threshold, True, got)
+        _same(got, want, f"trial {trial}")
+    # hand-computed: followers 0.1 m (in proximity) and 3 m (2 m beyond 1 m) from the leader
+    got = np.zeros((9, 2))
+    compiled.safety_gap_terms(np.array([[0.0, 0.0], [0.1, 0.0], [0.0, 3.0]]),
+                              np.array([False, True]), np.array([-1.0, -2.0, -4.0]), 0.15,
+                              0.073, True, -0.5, 1.0, True, got)
+    assert got[3:7].tolist() == [[-1.0, -0.0], [-0.0, -0.0], [-0.0, -4.0], [-0.0, -1.0]]
+
+
 DIGEST = """
 import hashlib
 import numpy as np
