@@ -594,7 +594,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if safety:
             wall = max(cfg.metrics.wall_distance,
                        cfg.world.robot_radius + metrics.CONTACT_TOLERANCE)
-            near = np.ascontiguousarray(cfg.scene.within(pos[1:], wall), dtype=np.bool_)
+            near = np.ascontiguousarray(self._scene.within(pos[1:], wall), dtype=np.bool_)
         else:
             near = np.zeros(len(pos) - 1, dtype=np.bool_)
         compiled.safety_gap_terms(

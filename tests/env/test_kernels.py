@@ -323,6 +323,26 @@ def test_safety_and_gap_terms_kernel_gives_the_envs_numpy_terms():
     assert got[3:7].tolist() == [[-1.0, -0.0], [-0.0, -0.0], [-0.0, -4.0], [-0.0, -1.0]]
 
 
+def test_frame_rotation_runs_compiled_with_the_numpy_bits(monkeypatch):
+    from boids_env import _compiled
+    from boids_env.observations import rotation
+    from boids_env.vectors import times_matrix
+
+    calls = []
+    rotated = _compiled._rotated
+    monkeypatch.setattr(_compiled, "_rotated", lambda v, m: calls.append(1) or rotated(v, m))
+    rng = np.random.default_rng(6)
+    for shape in [(13, 2), (12, 1, 2), (2,), (12, 4, 2), (0, 2)]:
+        v = rng.normal(size=shape) * 10.0 ** rng.integers(-300, 300, size=shape)
+        v.reshape(-1)[:3] = [-0.0, 0.0, 1e-310][:v.size]  # signed zeros, a subnormal
+        for m in (rotation(0.7), rotation(0.7).T, rotation(-3.0)):  # .T: not contiguous
+            got = times_matrix(v, m)
+            with kernels.reference():
+                want = times_matrix(v, m)
+            _same(got, want, f"{shape}")
+    assert len(calls) == 15, "the compiled rotation was not used"
+
+
 DIGEST = """
 import hashlib
 import numpy as np
