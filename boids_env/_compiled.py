@@ -582,6 +582,24 @@ def occupied(points, cells, resolution, x0, y0, c, s):  # pragma: no cover - com
 
 
 @njit(cache=True)
+def within(points, reach, shapes, qa, qb, qr, table, origin, shape, grid, cells, resolution,
+           x0, y0, c, s):  # pragma: no cover - compiled
+    """``Scene.within`` of a scene without a box or polygons in one call: a point's
+    :func:`shape_clearance` at most ``reach`` (with ``shapes``) or :func:`occupied` (with
+    ``grid``)."""
+    out = np.zeros(points.shape[0], dtype=np.bool_)
+    if shapes:
+        clearance = shape_clearance(points, qa, qb, qr, table, origin, shape)
+        for i in range(points.shape[0]):
+            out[i] = clearance[i] <= reach
+    if grid:
+        cell = occupied(points, cells, resolution, x0, y0, c, s)
+        for i in range(points.shape[0]):
+            out[i] = out[i] | cell[i]
+    return out
+
+
+@njit(cache=True)
 def in_sight_ahead(points, node, nxt, centres, free, origin_x, origin_y, cell, t,
                    steps):  # pragma: no cover - compiled
     """``route._in_sight_ahead``: the farthest node up to ``steps`` nodes along each

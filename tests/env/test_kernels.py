@@ -517,6 +517,26 @@ def test_scene_query_kernels_match_the_reference(name):
             _same(got, scene.grid.occupied(points), "occupied")
 
 
+def test_wall_flags_of_a_map_scene_run_in_one_compiled_call(monkeypatch):
+    from boids_env import _compiled
+
+    scene = _scene("lab")  # a map's cells and capsules, no box
+    calls = []
+    within = _compiled.within
+    monkeypatch.setattr(_compiled, "within", lambda *a: calls.append(1) or within(*a))
+    rng = np.random.default_rng(12)
+    x0, y0, x1, y1 = scene.bounds
+    points = np.vstack([rng.uniform([x0 - 0.5, y0 - 0.5], [x1 + 0.5, y1 + 0.5], (400, 2))]
+                       + [_crowd_near_walls(rng, scene, 20) for _ in range(10)])
+    for margins in ((0.036, 0.001), (0.25,), (0.5, 0.1), ()):
+        got = scene.within(points, *margins)
+        with kernels.reference():
+            want = scene.within(points, *margins)
+        _same(got, want, f"within {margins}")
+        assert 0 < got.sum() < len(points) or not margins, margins  # both answers occur
+    assert len(calls) == 4, "the one-call wall flags were not used"
+
+
 def test_nearest_points_kernel_on_hand_computed_walls():
     """The arena's east wall 0.1 m from (4.9, 0), the north wall 0.3 m from (4.9, 4.7): one
     slot each within 0.5 m, a later slot only for a direction more than 45° away."""
