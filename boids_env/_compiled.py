@@ -1048,6 +1048,15 @@ def exact_combine(both, exponents, column_scale, bias, activation, inv_ln2, ln2,
 
 
 @njit(cache=True)
+def exact_combine_slices(both, exponents, column_scale, bias, activation, inv_ln2, ln2,
+                         one):  # pragma: no cover - compiled
+    """A hidden layer's :func:`exact_combine`, then the next layer's :func:`exact_slices`
+    of it, in one call."""
+    return exact_slices(exact_combine(both, exponents, column_scale, bias, activation,
+                                      inv_ln2, ln2, one))
+
+
+@njit(cache=True)
 def _power_of_two(k):  # pragma: no cover - compiled
     """2^k where it is a normal float64 (then ``x * 2^k`` is ``ldexp(x, k)``: both the
     correctly rounded x·2^k), else 0."""

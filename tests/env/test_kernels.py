@@ -592,6 +592,12 @@ def test_exact_product_and_tanh_kernels_give_the_numpy_bits_inside_the_actor():
                                             layer.column_scale, layer.bias, 1, exact.INV_LN2,
                                             exact.LN2, exact.TANH_ONE)
         _same(with_tanh, exact.tanh(layer(x)), f"layer {inputs}x{outputs} tanh")
+        # a hidden layer's output straight into the next layer's slices (one call)
+        fused = _compiled.exact_combine_slices(layer.products(slices), exponents,
+                                               layer.column_scale, layer.bias, 1,
+                                               exact.INV_LN2, exact.LN2, exact.TANH_ONE)
+        for part, want in zip(fused, _compiled.exact_slices(exact.tanh(layer(x))), strict=True):
+            _same(part, want, f"layer {inputs}x{outputs} next slices")
     y = np.concatenate([rng.normal(0, s, 2000) for s in (1e-8, 0.01, 0.5, 3.0, 30.0)])
     y = np.concatenate([y, [0.0, -0.0, 20.0, -20.0, 1e300]]).reshape(-1, 5)
     want = exact.tanh(y)
