@@ -387,6 +387,36 @@ def nearest_other(positions):  # pragma: no cover - compiled
     return out
 
 
+@njit(cache=True)
+def safety_gap_terms(positions, near_static, safety_scale, safety_distance,
+                     contact_distance, safety_on, gap_scale, cohesion_threshold, gap_on,
+                     terms):  # pragma: no cover - compiled
+    """The env's opt-in safety rows (``terms[3:6]``: ``safety_scale[r] × flag``, the flags of
+    ``metrics.safety_flags`` from :func:`nearest_other`'s distances and ``near_static``) and
+    cohesion-gap row (``terms[6]``: ``gap_scale × max(d − threshold, 0)``, ``d`` the straight
+    distance to the leader as ``np.linalg.norm`` computes it: ``sqrt(dx·dx + dy·dy)``), as
+    ``BoidsEnv._safety_terms`` and ``_gap_term`` compute them (a flag as 1.0 or 0.0 times its
+    scale: an unflagged term is ``scale × 0.0``, −0.0 for a negative scale)."""
+    f = positions.shape[0] - 1
+    if safety_on:
+        nearest = nearest_other(positions)
+        for i in range(f):
+            d = nearest[i]
+            terms[3, i] = safety_scale[0] * (1.0 if d < safety_distance else 0.0)
+            terms[4, i] = safety_scale[1] * (1.0 if d < contact_distance else 0.0)
+            terms[5, i] = safety_scale[2] * (1.0 if near_static[i] else 0.0)
+    if gap_on:
+        lx = positions[0, 0]
+        ly = positions[0, 1]
+        for i in range(f):
+            dx = positions[i + 1, 0] - lx
+            dy = positions[i + 1, 1] - ly
+            excess = math.sqrt(dx * dx + dy * dy) - cohesion_threshold
+            # np.maximum(excess, 0.0): a NaN stays NaN, a tie keeps the first (+0.0 either way)
+            gap = excess if (excess >= 0.0 or excess != excess) else 0.0
+            terms[6, i] = gap_scale * gap
+
+
 # ------------------------------------------------------------------ static geometry
 # Ports of boids_env.world.scene's queries on its capsules: the same candidate lists (the
 # scene's spatial index, looked up here), the same operations in the same order as
@@ -548,6 +578,24 @@ def occupied(points, cells, resolution, x0, y0, c, s):  # pragma: no cover - com
         row = math.floor((-rx * s + ry * c) / resolution)
         if 0 <= col < w and 0 <= row < h:
             out[i] = cells[row, col] != 0
+    return out
+
+
+@njit(cache=True)
+def within(points, reach, shapes, qa, qb, qr, table, origin, shape, grid, cells, resolution,
+           x0, y0, c, s):  # pragma: no cover - compiled
+    """``Scene.within`` of a scene without a box or polygons in one call: a point's
+    :func:`shape_clearance` at most ``reach`` (with ``shapes``) or :func:`occupied` (with
+    ``grid``)."""
+    out = np.zeros(points.shape[0], dtype=np.bool_)
+    if shapes:
+        clearance = shape_clearance(points, qa, qb, qr, table, origin, shape)
+        for i in range(points.shape[0]):
+            out[i] = clearance[i] <= reach
+    if grid:
+        cell = occupied(points, cells, resolution, x0, y0, c, s)
+        for i in range(points.shape[0]):
+            out[i] = out[i] | cell[i]
     return out
 
 
@@ -997,6 +1045,15 @@ def exact_combine(both, exponents, column_scale, bias, activation, inv_ln2, ln2,
             for c in range(outputs):
                 out[i, c] = out[i, c] if out[i, c] > 0.0 else 0.0
     return out
+
+
+@njit(cache=True)
+def exact_combine_slices(both, exponents, column_scale, bias, activation, inv_ln2, ln2,
+                         one):  # pragma: no cover - compiled
+    """A hidden layer's :func:`exact_combine`, then the next layer's :func:`exact_slices`
+    of it, in one call."""
+    return exact_slices(exact_combine(both, exponents, column_scale, bias, activation,
+                                      inv_ln2, ln2, one))
 
 
 @njit(cache=True)

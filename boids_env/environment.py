@@ -559,10 +559,15 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             stacked = np.stack([flags[name] for name in metrics.VIOLATIONS])
             self._counts += stacked
             np.multiply(self._reward_scale, stacked, out=terms[:3])
-        if self._safety_on:
-            terms[3:6] = self._safety_terms(world.positions)
-        if self._gap_scale:
-            terms[6:7] = self._gap_term(world.positions)
+        if (compiled is not None and (self._safety_on or self._gap_scale)
+                and not self.episode_config.observation.route_leader
+                and len(world.positions) < metrics.KD_TREE_MIN_ROBOTS):
+            self._safety_gap_compiled(compiled, world.positions, terms)
+        else:
+            if self._safety_on:
+                terms[3:6] = self._safety_terms(world.positions)
+            if self._gap_scale:
+                terms[6:7] = self._gap_term(world.positions)
         if self._intrusion_scale:
             terms[7:8] = self._intrusion_term(world)
         if self._parked_scale:
@@ -578,6 +583,26 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                                      cfg.metrics.safety_distance,
                                      cfg.scene.within(positions[1:], wall))
         return scale * np.stack([flags[name] for name in metrics.SAFETY_FLAGS])
+
+    def _safety_gap_compiled(self, compiled: Any, positions: npt.NDArray[np.float64],
+                             terms: npt.NDArray[np.float64]) -> None:
+        """:meth:`_safety_terms` and :meth:`_gap_term` (the straight distance) into
+        ``terms`` in one compiled call, the same bits (below the KD-tree's size)."""
+        cfg = self.episode_config
+        safety = self._safety_on
+        pos = np.ascontiguousarray(positions, dtype=np.float64)
+        if safety:
+            wall = max(cfg.metrics.wall_distance,
+                       cfg.world.robot_radius + metrics.CONTACT_TOLERANCE)
+            near = np.ascontiguousarray(self._scene.within(pos[1:], wall), dtype=np.bool_)
+        else:
+            near = np.zeros(len(pos) - 1, dtype=np.bool_)
+        compiled.safety_gap_terms(
+            pos, near, np.ascontiguousarray(self._safety_scale[:, 0]),
+            float(cfg.metrics.safety_distance),
+            2 * cfg.world.robot_radius + metrics.CONTACT_TOLERANCE, safety,
+            float(self._gap_scale), float(cfg.metrics.cohesion_threshold),
+            bool(self._gap_scale), terms)
 
     def _gap_term(self, positions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """The cohesion-gap reward term (1, F): −weight · metres beyond the cohesion threshold

@@ -745,7 +745,10 @@ class Observer:
                 raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")
             obs = obs + self._noise(obs, cfg.obs_noise)
         if cfg.obs_noise > 0 or cfg.frame != "world":
-            obs = np.clip(obs, self.space.low, self.space.high).astype(np.float32)
+            if obs.dtype == np.float32:  # this call's own array (no noise added): in place
+                np.clip(obs, self.space.low, self.space.high, out=obs)
+            else:
+                obs = np.clip(obs, self.space.low, self.space.high).astype(np.float32)
         if cfg.relative_actions:
             self._leader_velocity = obs[:, self.layout.leader_velocity].astype(np.float64)
         return obs

@@ -83,14 +83,15 @@ class MLPActor(BatchPolicy):
         if compiled is not None and self._bounds.shape == (2, 2) and np.isfinite(x).all():
             # the same bits in fewer calls: the elementwise parts compiled, the exact
             # products numpy's as below (policies.exact)
-            y: npt.NDArray[Any] = np.ascontiguousarray(x)
             code = _ACTIVATION_CODES[self.activation]
-            for k, layer in enumerate(self.layers):
-                slices, exponents = compiled.exact_slices(y)
-                y = compiled.exact_combine(layer.products(slices), exponents,
-                                           layer.column_scale, layer.bias,
-                                           code if k + 1 < len(self.layers) else 0,
-                                           exact.INV_LN2, exact.LN2, exact.TANH_ONE)
+            slices, exponents = compiled.exact_slices(np.ascontiguousarray(x))
+            for layer in self.layers[:-1]:  # a layer's sums and tanh, the next one's slices
+                slices, exponents = compiled.exact_combine_slices(
+                    layer.products(slices), exponents, layer.column_scale, layer.bias, code,
+                    exact.INV_LN2, exact.LN2, exact.TANH_ONE)
+            head = self.layers[-1]
+            y = compiled.exact_combine(head.products(slices), exponents, head.column_scale,
+                                       head.bias, 0, exact.INV_LN2, exact.LN2, exact.TANH_ONE)
             return compiled.clip_actions(y, self._bounds[0], self._bounds[1])
         act = ACTIVATIONS[self.activation]
         y = x.astype(np.float64)

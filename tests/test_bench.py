@@ -1,6 +1,9 @@
 """The benchmark's rows run and its ratios are the quotients it names (no timings asserted:
 timing goals live in the benchmark itself)."""
 
+import gc
+import weakref
+
 import pytest
 
 from boids_env.bench.run import SCENE_ROWS, _ratios, env_loop
@@ -58,6 +61,30 @@ def test_a_loops_reset_is_off_the_clock(monkeypatch):
     assert run.timed(loop, 2)["median"] == 1.0
     now[0] = 0.0
     assert loop() == 4 and now[0] == 104.0  # called unprepared, it resets first
+
+
+def test_a_loops_prepare_collects_the_garbage_its_reset_left():
+    from boids_env.bench import run
+
+    class Node:
+        pass
+
+    left = []
+
+    def reset():  # a reset that drops a reference cycle (as a replaced pymunk world)
+        node = Node()
+        node.me = node
+        left.append(weakref.ref(node))
+
+    loop = run.Loop(reset, lambda _: 0)
+    enabled = gc.isenabled()
+    gc.disable()  # the collector's own thresholds must not do it
+    try:
+        loop.prepare()
+        assert left[0]() is None, "the cycle the reset left is still alive after prepare"
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def test_paired_ratios_are_taken_round_by_round():

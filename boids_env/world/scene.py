@@ -259,6 +259,10 @@ class Scene:
         """Whether each point (..., 2) is within the sum of ``margins`` (m) of static
         geometry (a robot of radius r touches at ``within(p, r, tolerance)``)."""
         pts = np.asarray(points, dtype=float)
+        compiled = kernels.compiled()
+        if (compiled is not None and self.box is None and not self.polygons
+                and pts.ndim == 2 and np.isfinite(pts).all()):
+            return self._within_compiled(compiled, pts, sum(margins))
         shape = pts.shape[:-1]
         flat = pts.reshape(-1, 2)
         out = np.zeros(len(flat), dtype=bool)
@@ -269,6 +273,25 @@ class Scene:
         if self.polygons or self.grid is not None:
             out |= self.inside(flat)
         return out.reshape(shape)
+
+    def _within_compiled(self, compiled: Any, points: FloatArray, reach: float) -> BoolArray:
+        """:meth:`within` of a scene of capsules and a map (no box, no polygons) in one
+        compiled call: the same clearances and cells."""
+        shapes = len(self._qr) > 0
+        qa, qb, qr = self._query_arrays()
+        origin, shape, table = (self._kernel_index(reach) if shapes
+                                else (np.zeros(3), np.ones(2, dtype=np.intp),
+                                      np.zeros((1, 1), dtype=np.intp)))
+        grid = self.grid
+        if grid is not None:
+            x0, y0, yaw = grid.origin
+            cells, resolution, turn = grid.cells, float(grid.resolution), (
+                float(x0), float(y0), math.cos(yaw), math.sin(yaw))
+        else:
+            cells, resolution, turn = np.zeros((1, 1), dtype=np.int8), 1.0, (0.0, 0.0, 1.0, 0.0)
+        return compiled.within(np.ascontiguousarray(points), float(reach), shapes, qa, qb, qr,
+                               table, origin, shape, grid is not None, cells, resolution,
+                               *turn)
 
     def _shape_clearance(self, points: FloatArray, reach: float) -> FloatArray:
         """Distance (P,) from each point to the nearest capsule or polygon edge surface

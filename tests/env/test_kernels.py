@@ -292,6 +292,57 @@ def test_safety_flags_kernel_matches_the_kd_tree():
     assert flags["contact"].tolist() == [False, False]
 
 
+def test_safety_and_gap_terms_kernel_gives_the_envs_numpy_terms():
+    from boids_env.metrics import leader_distance, safety_flags
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(5)
+    for trial in range(200):
+        n = int(rng.integers(2, 40))
+        positions = rng.normal(0, [0.05, 0.5, 3.0][trial % 3], (n, 2))
+        positions[n // 2] = positions[0]  # exactly on the leader: distance 0, gap 0
+        positions[-1] = positions[0] + [0.6, 0.8]  # exactly at the threshold: +0.0 gap
+        near = rng.random(n - 1) < 0.5
+        scale = -np.array([1.0, 2.5, 0.0])[:, None] * 0.1  # −0.0 for the zero weight
+        gap_scale, threshold = -10.0 * 0.1, 1.0
+        with kernels.reference():
+            flags = safety_flags(positions, 0.036, 0.15, near)
+            gap = np.maximum(leader_distance(positions) - threshold, 0.0)
+        want = np.zeros((9, n - 1))
+        want[3:6] = scale * np.stack([flags[k] for k in ("proximity", "contact", "wall")])
+        want[6:7] = gap_scale * gap[None]
+        got = np.zeros((9, n - 1))
+        compiled.safety_gap_terms(positions, near, np.ascontiguousarray(scale[:, 0]), 0.15,
+                                  2 * 0.036 + 0.001, True, gap_scale, threshold, True, got)
+        _same(got, want, f"trial {trial}")
+    # hand-computed: followers 0.1 m (in proximity) and 3 m (2 m beyond 1 m) from the leader
+    got = np.zeros((9, 2))
+    compiled.safety_gap_terms(np.array([[0.0, 0.0], [0.1, 0.0], [0.0, 3.0]]),
+                              np.array([False, True]), np.array([-1.0, -2.0, -4.0]), 0.15,
+                              0.073, True, -0.5, 1.0, True, got)
+    assert got[3:7].tolist() == [[-1.0, -0.0], [-0.0, -0.0], [-0.0, -4.0], [-0.0, -1.0]]
+
+
+def test_frame_rotation_runs_compiled_with_the_numpy_bits(monkeypatch):
+    from boids_env import _compiled
+    from boids_env.observations import rotation
+    from boids_env.vectors import times_matrix
+
+    calls = []
+    rotated = _compiled._rotated
+    monkeypatch.setattr(_compiled, "_rotated", lambda v, m: calls.append(1) or rotated(v, m))
+    rng = np.random.default_rng(6)
+    for shape in [(13, 2), (12, 1, 2), (2,), (12, 4, 2), (0, 2)]:
+        v = rng.normal(size=shape) * 10.0 ** rng.integers(-300, 300, size=shape)
+        v.reshape(-1)[:3] = [-0.0, 0.0, 1e-310][:v.size]  # signed zeros, a subnormal
+        for m in (rotation(0.7), rotation(0.7).T, rotation(-3.0)):  # .T: not contiguous
+            got = times_matrix(v, m)
+            with kernels.reference():
+                want = times_matrix(v, m)
+            _same(got, want, f"{shape}")
+    assert len(calls) == 15, "the compiled rotation was not used"
+
+
 DIGEST = """
 import hashlib
 import numpy as np
@@ -466,6 +517,26 @@ def test_scene_query_kernels_match_the_reference(name):
             _same(got, scene.grid.occupied(points), "occupied")
 
 
+def test_wall_flags_of_a_map_scene_run_in_one_compiled_call(monkeypatch):
+    from boids_env import _compiled
+
+    scene = _scene("lab")  # a map's cells and capsules, no box
+    calls = []
+    within = _compiled.within
+    monkeypatch.setattr(_compiled, "within", lambda *a: calls.append(1) or within(*a))
+    rng = np.random.default_rng(12)
+    x0, y0, x1, y1 = scene.bounds
+    points = np.vstack([rng.uniform([x0 - 0.5, y0 - 0.5], [x1 + 0.5, y1 + 0.5], (400, 2))]
+                       + [_crowd_near_walls(rng, scene, 20) for _ in range(10)])
+    for margins in ((0.036, 0.001), (0.25,), (0.5, 0.1), ()):
+        got = scene.within(points, *margins)
+        with kernels.reference():
+            want = scene.within(points, *margins)
+        _same(got, want, f"within {margins}")
+        assert 0 < got.sum() < len(points) or not margins, margins  # both answers occur
+    assert len(calls) == 4, "the one-call wall flags were not used"
+
+
 def test_nearest_points_kernel_on_hand_computed_walls():
     """The arena's east wall 0.1 m from (4.9, 0), the north wall 0.3 m from (4.9, 4.7): one
     slot each within 0.5 m, a later slot only for a direction more than 45° away."""
@@ -521,6 +592,12 @@ def test_exact_product_and_tanh_kernels_give_the_numpy_bits_inside_the_actor():
                                             layer.column_scale, layer.bias, 1, exact.INV_LN2,
                                             exact.LN2, exact.TANH_ONE)
         _same(with_tanh, exact.tanh(layer(x)), f"layer {inputs}x{outputs} tanh")
+        # a hidden layer's output straight into the next layer's slices (one call)
+        fused = _compiled.exact_combine_slices(layer.products(slices), exponents,
+                                               layer.column_scale, layer.bias, 1,
+                                               exact.INV_LN2, exact.LN2, exact.TANH_ONE)
+        for part, want in zip(fused, _compiled.exact_slices(exact.tanh(layer(x))), strict=True):
+            _same(part, want, f"layer {inputs}x{outputs} next slices")
     y = np.concatenate([rng.normal(0, s, 2000) for s in (1e-8, 0.01, 0.5, 3.0, 30.0)])
     y = np.concatenate([y, [0.0, -0.0, 20.0, -20.0, 1e300]]).reshape(-1, 5)
     want = exact.tanh(y)
