@@ -46,6 +46,7 @@ from boids_env.checks import flag as _flag
 from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
+from boids_env.proxemics import CUT_IN_MIN_SPEED
 from boids_env.vectors import clip_speed
 
 if TYPE_CHECKING:
@@ -56,9 +57,9 @@ FloatArray = npt.NDArray[np.float64]
 PEOPLE_ROWS = 4
 """People (a person leading, pedestrians) that constrain each follower: the nearest ones
 within reach."""
-PATH_MIN_SPEED = 0.2
+PATH_MIN_SPEED = CUT_IN_MIN_SPEED
 """A person leading walks (and its path is kept clear, ``safety_person_path``) from this
-speed (m/s) on: the cut-in metric's threshold (:data:`boids_env.proxemics.CUT_IN_MIN_SPEED`)."""
+speed (m/s) on: the cut-in metric's threshold."""
 STATIC_POINTS = 4
 """Surface points of static geometry per follower: the nearest in up to four directions
 more than 45° apart (a corridor's two walls, a corner's two sides)."""
@@ -289,6 +290,12 @@ def people_around(leader_position: FloatArray, leader_velocity: FloatArray,
     return People(np.concatenate(positions), np.concatenate(velocities), radius, person_leads)
 
 
+def _person_keep(people: People, radius: float, config: SafetyConfig) -> float:
+    """The centre distance the filter keeps from a person leading: ``safety_margin`` beyond
+    the larger of their bodies' and ``safety_person_distance``."""
+    return max(config.safety_person_distance, people.radius + radius) + config.safety_margin
+
+
 def people_constraints(followers: FloatArray, people: People, radius: float,
                        config: SafetyConfig) -> tuple[FloatArray, FloatArray]:
     """The half-planes of the :data:`PEOPLE_ROWS` nearest people within reach of each
@@ -296,11 +303,10 @@ def people_constraints(followers: FloatArray, people: People, radius: float,
     larger of the bodies' centre distance and ``safety_person_distance`` (a person leading)
     or ``safety_pedestrian_distance`` (a pedestrian), reach ``safety_range`` plus what keep
     adds to a robot pair's. ``(a (F, R, 2), b (F, R))``."""
-    bodies = people.radius + radius
-    keep = np.full(len(people.positions),
-                   max(config.safety_pedestrian_distance, bodies) + config.safety_margin)
+    keep = np.full(len(people.positions), max(config.safety_pedestrian_distance,
+                                              people.radius + radius) + config.safety_margin)
     if people.person_leads and len(keep):
-        keep[0] = max(config.safety_person_distance, bodies) + config.safety_margin
+        keep[0] = _person_keep(people, radius, config)
     f, k = len(followers), PEOPLE_ROWS
     a, b = np.zeros((f, k, 2)), np.full((f, k), _FREE)
     if not len(people.positions) or not f:
@@ -339,7 +345,7 @@ def person_path_constraints(followers: FloatArray, people: People, radius: float
     speed = float(np.sqrt(velocity[0] ** 2 + velocity[1] ** 2))
     if speed < PATH_MIN_SPEED:
         return a, b
-    keep = max(config.safety_person_distance, people.radius + radius) + config.safety_margin
+    keep = _person_keep(people, radius, config)
     ex, ey = velocity[0] / speed, velocity[1] / speed
     rel = followers - people.positions[0]
     along = rel[:, 0] * ex + rel[:, 1] * ey
@@ -382,15 +388,13 @@ def filter_commands(commands: FloatArray, positions: FloatArray, velocities: Flo
     a, b, hard = barrier_constraints(positions, velocities,
                                      np.asarray(leader_velocity, dtype=float), radius, config,
                                      surfaces, valid, leader_row=not leads)
-    if people is not None:
+    if people is not None:  # the people's rows are hard, the path's soft
+        blocks = [(a, b, hard)]
         a_p, b_p = people_constraints(positions[1:], people, radius, config)
-        a = np.concatenate([a, a_p], axis=1)
-        b = np.concatenate([b, b_p], axis=1)
-        hard = np.concatenate([hard, np.ones(b_p.shape, dtype=bool)], axis=1)
+        blocks.append((a_p, b_p, np.ones(b_p.shape, dtype=bool)))
         if leads and config.safety_person_path > 0.0:
             a_w, b_w = person_path_constraints(positions[1:], people, radius, config)
-            a = np.concatenate([a, a_w], axis=1)
-            b = np.concatenate([b, b_w], axis=1)
-            hard = np.concatenate([hard, np.zeros(b_w.shape, dtype=bool)], axis=1)
+            blocks.append((a_w, b_w, np.zeros(b_w.shape, dtype=bool)))
+        a, b, hard = (np.concatenate(rows, axis=1) for rows in zip(*blocks, strict=True))
     return clip_speed(nearest_allowed(np.asarray(commands, dtype=float), a, b, hard),
                       max_speed)
