@@ -38,12 +38,12 @@ def training_rate(config: Any, rollouts: int = 3) -> dict[str, Any]:
     import torch
     from stable_baselines3.common.vec_env import VecMonitor
 
-    from boids_env.policies.sb3_policy import algorithm_class
+    from boids_env.train.ppo import learner_class
     from boids_env.train.run import make_vec_env
     torch.set_num_threads(config.resolved_threads())
     venv = VecMonitor(make_vec_env(config))
     try:
-        cls = algorithm_class(config.algorithm)
+        cls = learner_class(config.algorithm)
         model = cls("MlpPolicy", venv, device=config.resolved_device(),
                     **config.algorithm_kwargs())
         chunk = config.n_steps * venv.num_envs

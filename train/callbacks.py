@@ -21,6 +21,17 @@ SAFETY = ("touching_fraction", "contacts_follower", "contacts_leader", "wall_fra
           "mean_nn_distance")
 
 
+def ended_infos(step: dict[str, Any]) -> list[dict[str, Any]]:
+    """The infos of the slots whose episode ended at this step of a rollout (SB3's callback
+    locals): the only ones that carry an episode's data (``flock_episode``, VecMonitor's
+    ``episode``), read without walking every slot's empty info each step."""
+    infos = step.get("infos", ())
+    dones = step.get("dones")
+    if dones is None:
+        return list(infos)
+    return [infos[i] for i in np.flatnonzero(dones)]
+
+
 class TrainingMetricsCallback(BaseCallback):
     """Logs the V_* of every finished training episode (``flock/train_*``, means since the
     last log dump), from the ``flock_episode`` info of :class:`~train.vec_env.FlockVecEnv`."""
@@ -30,7 +41,7 @@ class TrainingMetricsCallback(BaseCallback):
         self._episodes: list[dict[str, float]] = []
 
     def _on_step(self) -> bool:
-        for info in self.locals.get("infos", ()):
+        for info in ended_infos(self.locals):
             if EPISODE_INFO in info:
                 self._episodes.append(info[EPISODE_INFO])
         return True
@@ -68,7 +79,7 @@ class TrainingSummary(BaseCallback):
 
     def _on_step(self) -> bool:
         self._rewards.append(float(np.mean(self.locals["rewards"])))
-        for info in self.locals.get("infos", ()):
+        for info in ended_infos(self.locals):
             if EPISODE_INFO in info:
                 self._episodes.append(info[EPISODE_INFO])
             if "episode" in info:  # VecMonitor: one follower slot's episode return

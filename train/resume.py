@@ -35,9 +35,9 @@ def load_checkpoint(path: str | Path, config: TrainConfig, env: Any, device: str
     which unpickles the objects stored in the zip, with the config's hyperparameters."""
     from stable_baselines3.common.utils import get_device
 
-    from boids_env.policies.sb3_policy import algorithm_class
+    from boids_env.train.ppo import learner_class
 
-    cls = algorithm_class(config.algorithm)
+    cls = learner_class(config.algorithm)
     kwargs = config.algorithm_kwargs()
     if trust:
         kwargs.pop("policy_kwargs")  # SB3 refuses ones that differ from the saved network

@@ -28,7 +28,7 @@ from boids_env.eval import folder
 from boids_env.files import atomic_path, read_zip_entry, write_json
 from boids_env.policies.cards import CARD_KEY
 from boids_env.policies.registry import SB3_ENTRIES
-from boids_env.policies.sb3_policy import algorithm_class, read_meta, write_meta
+from boids_env.policies.sb3_policy import read_meta, write_meta
 from boids_env.train.callbacks import (
     Checkpoints,
     FlockEvalCallback,
@@ -37,6 +37,7 @@ from boids_env.train.callbacks import (
 )
 from boids_env.train.cards import training_card
 from boids_env.train.config import TrainConfig
+from boids_env.train.ppo import learner_class
 from boids_env.train.resume import load_checkpoint
 from boids_env.train.vec_env import CopySpec, FlockVecEnv
 
@@ -270,7 +271,7 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     torch.set_num_threads(config.resolved_threads())
     meta = model_meta(config)
     venv = VecMonitor(make_vec_env(config))
-    cls = algorithm_class(config.algorithm)
+    cls = learner_class(config.algorithm)
     try:
         if resume is not None:  # a checkpoint that cannot be read is refused before writing
             model = load_checkpoint(resume, config, venv, device, str(out / "tb"), verbose,

@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
+from boids_env import kernels
 from boids_env.batch import EnvBatch
 from boids_env.environment import BoidsEnv
 from boids_env.eval.pool import available_cores
@@ -71,6 +72,10 @@ class _Shard:
     """Copies stepped together, in this process or in a worker; arrays in, arrays out."""
 
     def __init__(self, specs: Sequence[CopySpec]) -> None:
+        # Training steps its copies for millions of steps, so the compiled kernels' load
+        # (about half a second) is repaid at once; left to the lazy load, a process would
+        # switch over mid-rollout after some 400 steps of the numpy reference (same bits).
+        kernels.load()
         self.specs = list(specs)
         self.envs = [spec.make() for spec in self.specs]
         self.batch = EnvBatch(self.envs)

@@ -1,5 +1,9 @@
 """FlockVecEnv against SB3's VecEnv contract."""
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -162,3 +166,20 @@ def test_train_config_resolves_processes_and_threads_from_the_cores(monkeypatch)
     pinned = config.replace(processes=4, torch_threads=3)
     assert (pinned.resolved_processes(), pinned.resolved_threads()) == (4, 3)
     assert config.replace(processes=12).resolved_threads() == 4
+
+
+def test_training_copies_load_the_compiled_kernels_at_once():
+    """A process left alone loads the kernels only after some 10,000 calls (about 400 steps
+    of the defaults' six copies), switching mid-rollout; copies made for training repay the
+    load at once."""
+    code = ("from boids_env import kernels\n"
+            "from boids_env.train.vec_env import CopySpec, FlockVecEnv\n"
+            "print(kernels.loaded() is None)\n"
+            "venv = FlockVecEnv([CopySpec(3, env_fields={'max_cycles': 5})], seed=0)\n"
+            "venv.reset()\n"
+            "print(kernels.loaded() is None)\n"
+            "venv.close()\n")
+    env = {k: v for k, v in os.environ.items() if k != "BOIDS_KERNELS"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env, timeout=300, check=True)
+    assert out.stdout.split() == ["True", "False"]
