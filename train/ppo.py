@@ -83,7 +83,9 @@ def lean_forward(policy: ActorCriticPolicy, obs: np.ndarray, gaussian: _Gaussian
     tanh are torch's kernels); the log-density's elementwise arithmetic, exactly rounded in
     either library, runs in numpy, which calls cheaper on a few hundred numbers."""
     gaussian = gaussian or _Gaussian(policy.log_std)
-    features = torch.as_tensor(obs, device=policy.device).float().flatten(1)
+    features = torch.as_tensor(obs, device=policy.device)
+    if features.dtype != torch.float32 or features.dim() != 2:  # else both return it as is
+        features = features.float().flatten(1)
     latent_pi = _layers(policy.mlp_extractor.policy_net, features)
     latent_vf = _layers(policy.mlp_extractor.value_net, features)
     values = F.linear(latent_vf, policy.value_net.weight, policy.value_net.bias)
