@@ -1,5 +1,12 @@
 """Old code against new in one run: ``python -m boids_env.bench.compare OLD_PYTHON``.
 
+With ``--training RECIPE`` (a shipped recipe, a TOML file, or ``defaults`` for ``boids
+train``'s defaults) each process instead trains PPO on that config as ``boids train`` would
+(``boids_env.bench.training.training_rate``: one warm-up rollout, then ``--rollouts`` timed,
+with the threads and processes each commit's defaults resolve to), and after each old/new
+pair a third process, under this interpreter, times the bench's bare physics of 13 robots
+(``physics_loop``): the issue's training/physics quotient, taken round by round.
+
 ``OLD_PYTHON`` is the interpreter of a venv that has another commit of boids-env installed
 (e.g. ``git worktree add ../old COMMIT`` and ``pip install -e ../old`` into a venv of its
 own). Each round runs one measurement process under the old interpreter, then one under this
@@ -55,16 +62,67 @@ print("RESULT " + json.dumps(out))
 """
 
 
-def measure(python: str, robots: int, steps: int, repeats: int, policy: str
-            ) -> dict[str, float]:
-    """One measurement process under ``python``: rates (env-steps/s) and env/physics
-    ratios, wall and CPU."""
-    done = subprocess.run([python, "-c", MEASURE, str(robots), str(steps), str(repeats),
-                           policy], capture_output=True, text=True, timeout=3600, check=False)
+MEASURE_TRAINING = """
+import json, sys
+from boids_env.bench.training import training_rate
+from boids_env.train.config import TrainConfig, resolve_recipe
+recipe, rollouts = sys.argv[1], int(sys.argv[2])
+config = TrainConfig() if recipe == "defaults" else TrainConfig.from_toml(resolve_recipe(recipe))
+row = training_rate(config.replace(eval_every=0, checkpoint_every=0), rollouts=rollouts)
+print("RESULT " + json.dumps({"follower-steps/s": row["follower_steps_per_s"],
+                              "torch threads": row["torch_threads"]}))
+"""
+
+MEASURE_PHYSICS = """
+import json, sys
+from boids_env.bench.run import physics_loop, timed
+robots, steps = int(sys.argv[1]), int(sys.argv[2])
+rate = timed(physics_loop(robots, steps), 5)["median"]
+print("RESULT " + json.dumps({"physics agent-steps/s": rate * robots}))
+"""
+
+
+def _run(python: str, script: str, *args: Any) -> dict[str, float]:
+    done = subprocess.run([python, "-c", script, *map(str, args)], capture_output=True,
+                          text=True, timeout=3600, check=False)
     lines = [line for line in done.stdout.splitlines() if line.startswith("RESULT ")]
     if done.returncode or not lines:
         raise RuntimeError(f"{python} failed (exit {done.returncode}):\n{done.stderr[-2000:]}")
     return json.loads(lines[-1].removeprefix("RESULT "))
+
+
+def compare_training(old_python: str, recipe: str = "defaults", rounds: int = 3,
+                     rollouts: int = 3, physics_steps: int = 1000,
+                     new_python: str | None = None) -> dict[str, Any]:
+    """Training throughput of the old and the new code in turn, and the bare physics of 13
+    robots after each pair: each one's median follower-steps/s, and the rounds' new/old and
+    new/physics quotients with their medians."""
+    new_python = new_python or sys.executable
+    rows = []
+    for _ in range(rounds):
+        old = _run(old_python, MEASURE_TRAINING, recipe, rollouts)
+        new = _run(new_python, MEASURE_TRAINING, recipe, rollouts)
+        physics = _run(new_python, MEASURE_PHYSICS, 13, physics_steps)
+        rows.append({"old": old["follower-steps/s"], "new": new["follower-steps/s"],
+                     "physics": physics["physics agent-steps/s"],
+                     "threads": (old["torch threads"], new["torch threads"])})
+    new_over_old = [r["new"] / r["old"] for r in rows]
+    new_over_physics = [r["new"] / r["physics"] for r in rows]
+    return {"rounds": rows,
+            "old": statistics.median(r["old"] for r in rows),
+            "new": statistics.median(r["new"] for r in rows),
+            "new_over_old": new_over_old,
+            "new_over_old_median": statistics.median(new_over_old),
+            "new_over_physics_13": new_over_physics,
+            "new_over_physics_13_median": statistics.median(new_over_physics),
+            "setting": {"recipe": recipe, "rounds": rounds, "rollouts": rollouts}}
+
+
+def measure(python: str, robots: int, steps: int, repeats: int, policy: str
+            ) -> dict[str, float]:
+    """One measurement process under ``python``: rates (env-steps/s) and env/physics
+    ratios, wall and CPU."""
+    return _run(python, MEASURE, robots, steps, repeats, policy)
 
 
 def compare(old_python: str, robots: int = 19, steps: int = 300, repeats: int = 5,
@@ -98,13 +156,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--policy", choices=["random", "reynolds"], default="random",
                         help="the env's actions (random)")
     parser.add_argument("--rounds", type=int, default=3, help="old/new process pairs (3)")
+    parser.add_argument("--training", metavar="RECIPE",
+                        help="compare training throughput on this recipe instead (a shipped "
+                             "recipe, a TOML file, or 'defaults')")
+    parser.add_argument("--rollouts", type=int, default=3,
+                        help="with --training: rollouts timed per process (3)")
     args = parser.parse_args(argv)
-    for name in ("robots", "steps", "repeats", "rounds"):
+    for name in ("robots", "steps", "repeats", "rounds", "rollouts"):
         if getattr(args, name) < (2 if name == "robots" else 1):
             parser.error(f"--{name} must be at least {2 if name == 'robots' else 1}, got "
                          f"{getattr(args, name)}")
-    out = compare(args.old_python, args.robots, args.steps, args.repeats, args.policy,
-                  args.rounds)
+    if args.training:
+        if args.training != "defaults":
+            from boids_env.train.config import resolve_recipe
+            try:
+                resolve_recipe(args.training)
+            except FileNotFoundError as err:
+                parser.error(f"--training: {err}")
+        out = compare_training(args.old_python, args.training, args.rounds, args.rollouts)
+    else:
+        out = compare(args.old_python, args.robots, args.steps, args.repeats, args.policy,
+                      args.rounds)
     print(json.dumps(out, indent=2))
     return 0
 

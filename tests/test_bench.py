@@ -160,3 +160,30 @@ def test_the_batch_rows_step_the_same_copies_both_ways():
     for a, b in zip(together, apart, strict=True):  # the same worlds, bit for bit
         assert a._world.steps == b._world.steps == 4
         assert a.state().tobytes() == b.state().tobytes()
+
+
+@pytest.mark.slow
+def test_compare_training_times_old_new_and_the_physics_round_by_round(tmp_path):
+    import sys
+
+    from boids_env.bench.compare import compare_training
+
+    recipe = tmp_path / "tiny.toml"
+    recipe.write_text("[train]\ncopies = 1\ngroup_sizes = [3]\nn_steps = 8\nbatch_size = 8\n"
+                      "n_epochs = 1\nnet_arch = [8]\n")
+    out = compare_training(sys.executable, str(recipe), rounds=2, rollouts=1,
+                           physics_steps=20)
+    assert len(out["rounds"]) == 2
+    for row in out["rounds"]:
+        assert row["old"] > 0 and row["new"] > 0 and row["physics"] > 0
+    assert out["new_over_old"] == [r["new"] / r["old"] for r in out["rounds"]]
+    assert out["new_over_physics_13"] == [r["new"] / r["physics"] for r in out["rounds"]]
+    assert out["setting"] == {"recipe": str(recipe), "rounds": 2, "rollouts": 1}
+
+
+def test_compare_refuses_an_unknown_training_recipe(capsys):
+    from boids_env.bench.compare import main
+
+    with pytest.raises(SystemExit):
+        main(["python", "--training", "no_such_recipe"])
+    assert "training config not found" in capsys.readouterr().err

@@ -30,9 +30,16 @@ def _same_weights(a, b):
     return sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
 
 
-def test_flock_ppo_trains_the_same_model_as_stock_ppo_bit_for_bit():
-    stock, initial = _trained(PPO)
-    ours, _ = _trained(FlockPPO)
+@pytest.mark.parametrize(("split", "kwargs"), [
+    (True, {}), (False, {}),
+    (True, {"clip_range_vf": 0.3, "normalize_advantage": False, "ent_coef": 0.01}),
+])
+def test_flock_ppo_trains_the_same_model_as_stock_ppo_bit_for_bit(split, kwargs, monkeypatch):
+    """Its rollouts (lean forward) and its update, the critic's half in a second thread or
+    not (a second core and one torch thread decide, so both are forced here)."""
+    stock, initial = _trained(PPO, **kwargs)
+    monkeypatch.setattr(FlockPPO, "_splits_update", lambda self: split)
+    ours, _ = _trained(FlockPPO, **kwargs)
     assert lean_forward_applies(ours.policy, ours.action_space)
     moved = [k for k, v in stock.policy.state_dict().items() if not torch.equal(v, initial[k])]
     assert "action_net.weight" in moved and "value_net.weight" in moved  # it did train
@@ -44,11 +51,43 @@ def test_flock_ppo_trains_the_same_model_as_stock_ppo_bit_for_bit():
     assert stock.num_timesteps == ours.num_timesteps
 
 
-def test_a_policy_outside_the_lean_path_is_collected_by_sb3_itself():
+def test_a_policy_outside_the_lean_path_is_collected_and_updated_by_sb3_itself():
     stock, _ = _trained(PPO, rollouts=1, use_sde=True)
     ours, _ = _trained(FlockPPO, rollouts=1, use_sde=True)
     assert not lean_forward_applies(ours.policy, ours.action_space)
+    assert not ours._splits_update()
     assert _same_weights(stock, ours)
+
+
+def test_the_update_splits_only_with_one_torch_thread_and_no_kl_stop(monkeypatch):
+    import boids_env.train.ppo as ppo
+
+    model, _ = _trained(FlockPPO, rollouts=1)
+    monkeypatch.setattr(ppo, "available_cores", lambda: 2)
+    assert model._splits_update()
+    monkeypatch.setattr(ppo, "available_cores", lambda: 1)
+    assert not model._splits_update()
+    monkeypatch.setattr(ppo, "available_cores", lambda: 2)
+    model.target_kl = 0.01
+    assert not model._splits_update()
+    model.target_kl = None
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        assert not model._splits_update()
+    finally:
+        torch.set_num_threads(before)
+
+
+def test_the_split_update_logs_what_sb3s_update_logs(monkeypatch):
+    logged = {}
+    for split in (False, True):
+        monkeypatch.setattr(FlockPPO, "_splits_update", lambda self, s=split: s)
+        model, _ = _trained(FlockPPO, rollouts=1)
+        logged[split] = dict(model.logger.name_to_value)
+    assert logged[True].keys() == logged[False].keys()
+    assert {"train/value_loss", "train/loss", "train/approx_kl", "train/std"} <= logged[True].keys()
+    assert logged[True] == logged[False]
 
 
 @pytest.mark.parametrize("policy_kwargs", [
