@@ -416,7 +416,8 @@ def default_threads(processes: int, cores: int | None = None) -> int:
     so on a machine whose other core is busy they take turns with the env for one core.
     Measured on a loaded 2-core machine with ``boids train``'s defaults (follower-steps/s,
     one process): 1 thread 5,920 against 2 threads 906; with two worker processes 11,534
-    against 499 (docs/explanation/speed.md)."""
+    against 499 (docs/explanation/speed.md). The second core still serves the update:
+    :class:`~boids_env.train.ppo.FlockPPO` runs each minibatch's critic half there."""
     cores = cores or available_cores()
     return 1 if cores <= 2 else max(1, cores - processes)
 
