@@ -5,6 +5,7 @@ the study lists as future work. Users write their own in TOML (see :func:`load_s
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import json
 import numbers
 from collections.abc import Sequence
@@ -582,7 +583,19 @@ def _explicit_cases(raw: Any, defaults: dict[str, Any]) -> list[Case]:
 
 
 def _check_fields(values: dict[str, Any], where: str) -> None:
+    """Refuses names that are neither env config fields nor Reynolds parameters, naming each
+    with the known names closest to it (the whole list, some 130 names, is the
+    configuration reference's; an error quoting it ran past 2,000 characters)."""
     bad = sorted(k for k in values if k not in FIELD_OWNER and k not in POLICY_FIELDS)
     if bad:
-        raise ValueError(f"{where}: unknown field(s) {bad}; use env config fields "
-                         f"{sorted(FIELD_OWNER)} or Reynolds parameters {list(POLICY_FIELDS)}")
+        known = [*sorted(FIELD_OWNER), *POLICY_FIELDS]
+        hints = []
+        for name in bad[:5]:
+            close = difflib.get_close_matches(str(name), known, n=3, cutoff=0.6)
+            hints.append(f"{excerpt(name)} (did you mean {', '.join(map(repr, close))}?)"
+                         if close else excerpt(name))
+        more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
+        raise ValueError(f"{where}: unknown field(s) {', '.join(hints)}{more}: a suite sets "
+                         f"env config fields ({len(FIELD_OWNER)}, e.g. robots, leader_speed, "
+                         f"scene) or Reynolds parameters ({len(POLICY_FIELDS)}, e.g. "
+                         f"leader_weight), listed in the configuration reference")

@@ -85,6 +85,18 @@ def test_bad_toml_suites_are_clear_errors(tmp_path, text, match):
         load_suite(path)
 
 
+def test_a_misspelt_field_is_named_with_its_closest_fields_in_a_short_message(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('[[case]]\nname = "a"\nleader_sped = 0.5\n' + "".join(
+        f"x{i}yz = 1\n" for i in range(9)))
+    with pytest.raises(ValueError) as err:
+        load_suite(path)
+    message = str(err.value)
+    assert "'leader_sped' (did you mean 'leader_speed'" in message
+    assert "and 5 more" in message and "configuration reference" in message
+    assert len(message) < 600  # it quoted every field name before: 2,059 characters
+
+
 def test_unknown_suite_name():
     with pytest.raises(FileNotFoundError, match="paper"):
         load_suite("nope")
