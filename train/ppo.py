@@ -20,8 +20,9 @@ other work: 0.99–1.16). Saving and loading are SB3's own: a saved model is an 
 PPO zip.
 
 A policy that is not the plain ``MlpPolicy`` shape (a Gaussian over a box, a shared flatten
-extractor, sequential hidden layers, no gSDE) or that runs on a GPU is collected through SB3's
-own forward pass.
+extractor, sequential hidden layers, no gSDE) or that runs on a GPU is collected and updated
+by SB3's own code, and so is a run that stops its update early on the KL divergence
+(``target_kl``).
 """
 
 from __future__ import annotations
