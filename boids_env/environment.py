@@ -578,11 +578,16 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         """The safety reward terms (3, F): −weight · flag · dt (called when a weight is set)."""
         scale = self._safety_scale
         cfg = self.episode_config
-        wall = max(cfg.metrics.wall_distance, cfg.world.robot_radius + metrics.CONTACT_TOLERANCE)
         flags = metrics.safety_flags(positions, cfg.world.robot_radius,
                                      cfg.metrics.safety_distance,
-                                     cfg.scene.within(positions[1:], wall))
+                                     cfg.scene.within(positions[1:], self._wall_reach()))
         return scale * np.stack([flags[name] for name in metrics.SAFETY_FLAGS])
+
+    def _wall_reach(self) -> float:
+        """How near static geometry a follower's centre is flagged at a wall: the metrics'
+        ``wall_distance``, at least touching (the robot's radius and the contact tolerance)."""
+        cfg = self.episode_config
+        return max(cfg.metrics.wall_distance, cfg.world.robot_radius + metrics.CONTACT_TOLERANCE)
 
     def _safety_gap_compiled(self, compiled: Any, positions: npt.NDArray[np.float64],
                              terms: npt.NDArray[np.float64]) -> None:
@@ -592,9 +597,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         safety = self._safety_on
         pos = np.ascontiguousarray(positions, dtype=np.float64)
         if safety:
-            wall = max(cfg.metrics.wall_distance,
-                       cfg.world.robot_radius + metrics.CONTACT_TOLERANCE)
-            near = np.ascontiguousarray(self._scene.within(pos[1:], wall), dtype=np.bool_)
+            near = np.ascontiguousarray(self._scene.within(pos[1:], self._wall_reach()),
+                                        dtype=np.bool_)
         else:
             near = np.zeros(len(pos) - 1, dtype=np.bool_)
         compiled.safety_gap_terms(
