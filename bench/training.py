@@ -41,7 +41,8 @@ def training_rate(config: Any, rollouts: int = 3) -> dict[str, Any]:
     from boids_env.train.ppo import learner_class
     from boids_env.train.run import make_vec_env
     torch.set_num_threads(config.resolved_threads())
-    venv = VecMonitor(make_vec_env(config))
+    flock = make_vec_env(config)
+    venv = VecMonitor(flock)
     try:
         cls = learner_class(config.algorithm)
         model = cls("MlpPolicy", venv, device=config.resolved_device(),
@@ -53,7 +54,7 @@ def training_rate(config: Any, rollouts: int = 3) -> dict[str, Any]:
         seconds = time.perf_counter() - start
     finally:
         venv.close()
-    return {"processes": config.resolved_processes(),
+    return {"processes": flock.processes,
             "torch_threads": config.resolved_threads(), "device": config.resolved_device(),
             "copies": config.copies, "follower_steps_per_s": rollouts * chunk / seconds}
 

@@ -51,7 +51,9 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
                    help="with --seeds: seeds trained at once (default: all)")
     p.add_argument("--copies", type=int, default=None, help="env copies stepped together")
     p.add_argument("--processes", type=int, default=None,
-                   help="env worker processes (0: half the cores from 3 cores on, else 1)")
+                   help="processes stepping the env copies, this one included (0: half "
+                        "the cores from 3 cores on, else 1, or on 2 cores a worker too "
+                        "when the copies' step takes 2 ms or more)")
     p.add_argument("--torch-threads", type=int, default=None, dest="torch_threads",
                    help="learner threads (0: one on 1-2 cores, else the cores the env "
                         "workers leave)")

@@ -90,8 +90,10 @@ class TrainConfig:
     path: ``paths``, ``path_rotations`` and ``path_mirrors`` are drawn in arena copies only.
     A world table must not set what an episode draws."""
     processes: int = 0
-    """Worker processes the env copies are split over (1: stepped in the training process;
-    0: half the cores from 3 cores on, else 1; see ``vec_env.default_processes``)."""
+    """Processes the env copies are split over, the training process included (1: all
+    stepped in the training process; ``k``: it and ``k - 1`` workers; 0: half the cores from
+    3 cores on, else 1, and on 2 cores a worker too when the copies' step is slow; see
+    ``vec_env.default_processes`` and ``vec_env.SECOND_CORE_STEP``)."""
     torch_threads: int = 0
     """Torch threads of the learner; 0: the cores the env workers leave (one on 1 or 2
     cores, where a second thread spins against the env; see ``vec_env.default_threads``)."""
@@ -253,7 +255,8 @@ class TrainConfig:
 
     # -------------------------------------------------------------------------- derived
     def resolved_processes(self) -> int:
-        """``processes``, or ``vec_env.default_processes`` of the copies when it is 0."""
+        """``processes``, or ``vec_env.default_processes`` of the copies when it is 0 (on 2
+        cores the env may still add a worker: ``FlockVecEnv.processes`` says)."""
         from boids_env.train.vec_env import default_processes
 
         return self.processes or default_processes(self.copies)

@@ -10,8 +10,10 @@ Seeding: ``seed(s)`` spawns one independent ``numpy.random.SeedSequence`` child 
 copy draws its episode seeds and sampled options from its own stream, so copies never share a
 random stream and a run is reproducible from one integer.
 
-With ``processes > 1`` the copies are split over worker processes (each owns a shard of copies
-and steps them in one call), which pays when several copies are stepped per VecEnv step.
+With ``processes > 1`` the copies are split over that many processes, this one included: this
+process steps the first shard of copies itself while ``processes - 1`` worker processes step
+the others (each shard in one call), so the training process's core steps copies too instead
+of waiting for the workers.
 """
 
 from __future__ import annotations
@@ -261,9 +263,11 @@ class FlockVecEnv(VecEnv):
         copies: the env copies (their group sizes, sampled leader speeds and paths); an int
             ``n`` means ``n`` copies of the study's default case.
         seed: base seed (see :meth:`seed`); reseed any time with ``seed()``.
-        processes: worker processes the copies are split over (1: all in this process; 0:
-            :func:`default_processes`). Results do not depend on it: every copy has its own
-            random stream, so a run is deterministic for a given seed whatever the split.
+        processes: processes the copies are split over, this one included (1: all in this
+            process; ``k``: this process steps the first shard of copies and ``k - 1`` worker
+            processes the others; 0: :func:`default_processes`). Results do not depend on
+            it: every copy has its own random stream, so a run is deterministic for a given
+            seed whatever the split.
     """
 
     def __init__(self, copies: int | Iterable[CopySpec] = 1, *, seed: int = 0,
@@ -281,6 +285,7 @@ class FlockVecEnv(VecEnv):
                 or not 0 <= processes <= len(specs):
             raise ValueError(f"processes must be an integer in [0, {len(specs)}] (the number "
                              f"of copies; 0: half the cores), got {processes!r}")
+        auto = processes == 0
         processes = processes or default_processes(len(specs))
         self.specs = specs
         probe = [spec.make() for spec in specs]
@@ -291,14 +296,20 @@ class FlockVecEnv(VecEnv):
         obs_space = obs_spaces[0]
         for e in probe:
             e.close()
+        if auto and processes == 1 and len(specs) > 1 and available_cores() == 2:
+            processes = 2 if _step_seconds(specs) >= SECOND_CORE_STEP else 1
+        self.processes = processes
+        """The processes stepping the copies, this one included (``processes`` resolved)."""
         # Contiguous groups of copies per shard, balanced by follower count.
         groups = _split(specs, processes)
-        if processes == 1:
-            self.shards: list[Any] = [_Shard(specs)]
-        else:
+        # The first shard is stepped here, the others in workers (started first, so that
+        # they build their copies while this process builds its own).
+        remote: list[Any] = []
+        if processes > 1:
             ctx = mp.get_context("forkserver" if "forkserver" in mp.get_all_start_methods()
                                  else "spawn")
-            self.shards = [_RemoteShard(group, obs_space.shape[0], ctx) for group in groups]
+            remote = [_RemoteShard(group, obs_space.shape[0], ctx) for group in groups[1:]]
+        self.shards: list[Any] = [_Shard(groups[0]), *remote]
         self.copy_sizes = [spec.robots - 1 for spec in specs]
         self.shard_sizes = [sum(s.sizes) for s in self.shards]
         self._copy_index = [(si, ci) for si, s in enumerate(self.shards)
@@ -339,20 +350,18 @@ class FlockVecEnv(VecEnv):
             raise ValueError(f"actions must have shape {(self.num_envs, 2)} (one (vx, vy) per "
                              f"slot), got {actions.shape}")
         self._actions = actions
-        if len(self.shards) > 1:
-            start = 0
-            for shard, n in zip(self.shards, self.shard_sizes, strict=True):
-                shard.start_step(actions[start:start + n])
-                start += n
+        start = self.shard_sizes[0]
+        for shard, n in zip(self.shards[1:], self.shard_sizes[1:], strict=True):
+            shard.start_step(actions[start:start + n])
+            start += n
 
     def step_wait(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32],
                                  npt.NDArray[np.bool_], list[dict[str, Any]]]:
         if self._actions is None:
             raise RuntimeError("step_wait() without step_async()")
-        if len(self.shards) == 1:
-            results = [self.shards[0].step(self._actions)]
-        else:
-            results = [shard.finish_step() for shard in self.shards]
+        # this process's shard while the workers step theirs
+        results = [self.shards[0].step(self._actions[:self.shard_sizes[0]]),
+                   *(shard.finish_step() for shard in self.shards[1:])]
         self._actions = None
         obs = np.concatenate([r[0] for r in results])
         rewards = np.concatenate([r[1] for r in results])
@@ -392,13 +401,47 @@ class FlockVecEnv(VecEnv):
         return [None] * len(self.specs)
 
 
+SECOND_CORE_STEP = 0.002
+"""On 2 cores, ``processes=0`` gives the copies a worker beside the training process when one
+step of them all takes at least this long (seconds) in this process, timed on throwaway
+copies before training. A worker's round trip (pipe, shared memory, waking) costs a fixed
+part of a step; measured on 2 cores (docs/explanation/speed.md, the fifth pass), it paid for
+``ppo_safe``'s copies (7-9 ms a step: 1.2× the training's follower-steps/s idle, even with
+a core held) and lost for the defaults' (0.7 ms: 0.7-1.1×)."""
+
+
+def _step_seconds(specs: Sequence[CopySpec], steps: int = 8) -> float:
+    """Seconds one step of all ``specs``' copies takes in this process: throwaway copies,
+    reset with fixed seeds, a warm-up step, then the median of ``steps`` zero-action steps
+    (nothing of the training's own copies or random streams is touched)."""
+    import time
+
+    shard = _Shard(specs)
+    try:
+        shard.seed(np.random.SeedSequence(0).spawn(len(specs)))
+        shard.reset()
+        actions = np.zeros((sum(shard.sizes), 2), dtype=np.float32)
+        shard.step(actions)
+        times = []
+        for _ in range(steps):
+            start = time.perf_counter()
+            shard.step(actions)
+            times.append(time.perf_counter() - start)
+    finally:
+        shard.close()
+    return float(np.median(times))
+
+
 def default_processes(copies: int, cores: int | None = None) -> int:
-    """Worker processes for ``copies`` env copies on a machine of ``cores`` cores (default:
-    :func:`available_cores`): half the cores (at most one per copy) from 3 cores on, the other
-    half left to the learner's torch threads (:func:`default_threads`). On 1 or 2 cores the
-    copies are stepped in the training process: measured on 2 cores, two workers plus the
-    learner ran 0.31× the env's raw speed against 0.43× in one process (the pipes and the
-    learner compete for the cores). Measured on a 16-core Xeon with the ``ppo_safe`` recipe
+    """Processes stepping ``copies`` env copies (the training process included) on a machine
+    of ``cores`` cores (default: :func:`available_cores`): half the cores (at most one per
+    copy) from 3 cores on, the other half left to the learner's torch threads
+    (:func:`default_threads`). On 1 or 2 cores the training process steps them all (on 2,
+    :class:`FlockVecEnv` adds a worker for copies whose step is slow: ``SECOND_CORE_STEP``).
+    Measured on 2 cores, two workers beside an idle training process ran 0.31× the env's raw
+    speed against 0.43× in one process (the pipes and the learner compete for the cores).
+    Measured (when ``processes`` counted the workers only, the training process waiting for
+    them) on a 16-core Xeon with the ``ppo_safe`` recipe
     (16 copies, follower-steps/s): 16 cores 8 workers + 8 threads 44,700–50,900 against one
     worker per core + 16 threads 30,500 (10 + 6: 49,900; 6 + 10: 48,600; 15 + 1: 25,100);
     8 cores 4 + 4 34,500 against 8 + 8 29,300; 4 cores 2 + 2 26,300 against 4 + 4 24,300.
@@ -408,8 +451,9 @@ def default_processes(copies: int, cores: int | None = None) -> int:
 
 
 def default_threads(processes: int, cores: int | None = None) -> int:
-    """Torch threads for the learner beside ``processes`` env workers: one on 1 or 2 cores,
-    else the cores the workers leave (see :func:`default_processes` for those measurements).
+    """Torch threads for the learner beside ``processes`` processes stepping the copies (the
+    training process one of them): one on 1 or 2 cores, else the cores they leave (see
+    :func:`default_processes` for those measurements).
 
     On 2 cores a second intra-op thread buys the learner little (small networks, small
     batches) and costs the env a lot: torch's worker threads spin-wait between operations,

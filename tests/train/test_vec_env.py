@@ -183,3 +183,58 @@ def test_training_copies_load_the_compiled_kernels_at_once():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env=env, timeout=300, check=True)
     assert out.stdout.split() == ["True", "False"]
+
+
+def test_processes_count_the_training_process_which_steps_the_first_shard():
+    import multiprocessing as mp
+
+    from boids_env.train.vec_env import _RemoteShard, _Shard
+
+    before = set(mp.active_children())
+    venv = FlockVecEnv(_specs(5, 7, 4), seed=1, processes=2)
+    try:
+        workers = set(mp.active_children()) - before
+        assert len(workers) == 1 and venv.processes == 2
+        local, remote = venv.shards
+        assert isinstance(local, _Shard) and isinstance(remote, _RemoteShard)
+        # the split balances followers: copies of 4 + 6 followers here, 3 in the worker
+        assert venv.shard_sizes == [10, 3]
+    finally:
+        venv.close()
+
+
+@pytest.mark.parametrize(("threshold", "expected"), [(0.0, 2), (1e9, 1)])
+def test_auto_processes_on_two_cores_add_a_worker_for_slow_copies_only(
+        monkeypatch, threshold, expected):
+    import boids_env.train.vec_env as vec_env
+
+    monkeypatch.setattr(vec_env, "available_cores", lambda: 2)
+    monkeypatch.setattr(vec_env, "SECOND_CORE_STEP", threshold)
+    specs = [CopySpec(5, env_fields={"max_cycles": 12}), CopySpec(6, env_fields={"max_cycles": 12})]
+    auto, one = FlockVecEnv(specs, seed=2, processes=0), FlockVecEnv(specs, seed=2, processes=1)
+    try:
+        assert auto.processes == expected and len(auto.shards) == expected
+        # the timing probe steps throwaway copies: the trajectories are one process's
+        obs_auto, steps_auto = _rollout(auto, 30)
+        obs_one, steps_one = _rollout(one, 30)
+        assert np.array_equal(np.stack(obs_auto), np.stack(obs_one))
+        assert all(np.array_equal(a[1], b[1]) for a, b in zip(steps_auto, steps_one, strict=True))
+    finally:
+        auto.close()
+        one.close()
+
+
+def test_auto_processes_time_no_copies_off_two_cores(monkeypatch):
+    import boids_env.train.vec_env as vec_env
+
+    def no_probe(specs):
+        raise AssertionError("the step was timed")
+
+    monkeypatch.setattr(vec_env, "_step_seconds", no_probe)
+    for cores, expected in ((1, 1), (16, 2)):
+        monkeypatch.setattr(vec_env, "available_cores", lambda cores=cores: cores)
+        venv = FlockVecEnv(_specs(5, 6), processes=0)
+        try:
+            assert venv.processes == expected
+        finally:
+            venv.close()
