@@ -16,9 +16,9 @@ def raw_env_rate(config: Any, steps: int = 300) -> float:
     """Agent-steps/s of the recipe's env copies stepped in one process with random actions
     (the array API, no learner): the ceiling training is measured against."""
     from boids_env.train.run import copy_specs
-    from boids_env.train.vec_env import _Shard
+    from boids_env.train.shards import Shard
 
-    shard = _Shard(copy_specs(config))
+    shard = Shard(copy_specs(config))
     shard.seed(np.random.SeedSequence(config.seed).spawn(len(shard.envs)))
     shard.reset()
     slots = sum(shard.sizes)

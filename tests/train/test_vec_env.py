@@ -188,7 +188,7 @@ def test_training_copies_load_the_compiled_kernels_at_once():
 def test_processes_count_the_training_process_which_steps_the_first_shard():
     import multiprocessing as mp
 
-    from boids_env.train.vec_env import _RemoteShard, _Shard
+    from boids_env.train.shards import RemoteShard, Shard
 
     before = set(mp.active_children())
     venv = FlockVecEnv(_specs(5, 7, 4), seed=1, processes=2)
@@ -196,7 +196,7 @@ def test_processes_count_the_training_process_which_steps_the_first_shard():
         workers = set(mp.active_children()) - before
         assert len(workers) == 1 and venv.processes == 2
         local, remote = venv.shards
-        assert isinstance(local, _Shard) and isinstance(remote, _RemoteShard)
+        assert isinstance(local, Shard) and isinstance(remote, RemoteShard)
         # the split balances followers: copies of 4 + 6 followers here, 3 in the worker
         assert venv.shard_sizes == [10, 3]
     finally:
@@ -238,3 +238,16 @@ def test_auto_processes_time_no_copies_off_two_cores(monkeypatch):
             assert venv.processes == expected
         finally:
             venv.close()
+
+
+def test_a_worker_imports_neither_torch_nor_stable_baselines3():
+    # a worker unpickles its CopySpecs and steps its shard from boids_env.train.shards:
+    # importing the learner's modules would cost each worker some 2 s and 190 MiB
+    code = ("import sys, pickle\n"
+            "from boids_env.train.shards import CopySpec, _worker\n"
+            "pickle.loads(pickle.dumps([CopySpec(5)]))\n"
+            "heavy = sorted({'torch', 'stable_baselines3'} & set(sys.modules))\n"
+            "assert not heavy, heavy\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
