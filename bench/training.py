@@ -36,6 +36,7 @@ def training_rate(config: Any, rollouts: int = 3) -> dict[str, Any]:
     """Follower-steps/s of PPO on ``config`` (after one warm-up rollout), with the learner's
     threads, processes and device the config resolves to."""
     import torch
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecMonitor
 
     from boids_env.train.ppo import learner_class
@@ -47,6 +48,8 @@ def training_rate(config: Any, rollouts: int = 3) -> dict[str, Any]:
         cls = learner_class(config.algorithm)
         model = cls("MlpPolicy", venv, device=config.resolved_device(),
                     **config.algorithm_kwargs())
+        # no output: SB3's default logger would leave an empty SB3-<date> folder in /tmp
+        model.set_logger(Logger(None, []))
         chunk = config.n_steps * venv.num_envs
         model.learn(chunk)
         start = time.perf_counter()
