@@ -265,6 +265,41 @@ class ObservationLayout:
             high[self.block("route")] = [1.0, 1.0, ROUTE_REACH * reach, 1.0]
         return spaces.Box(low, high, dtype=np.float32)
 
+    @functools.cached_property
+    def noise_columns(self) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp],
+                                     npt.NDArray[np.intp]]:
+        """Where sensing noise is masked, as column indices ``(scaled, flags, zeroed)``: the
+        noise of column ``scaled[i]`` is multiplied by the observation's ``flags[i]`` (a slot's
+        position and velocity, or neighbour heading, by its valid flag), the noise of the
+        ``zeroed`` columns (the valid flags themselves) is zero. Read off this layout's own
+        slot views, so that :meth:`Observer._noise` masks a batch in two indexed operations."""
+        cols = np.arange(self.size)[None]
+        scaled: list[npt.NDArray[np.intp]] = []
+        flags: list[npt.NDArray[np.intp]] = []
+        zeroed: list[npt.NDArray[np.intp]] = []
+
+        def scale(block: npt.NDArray[np.intp], flag: npt.NDArray[np.intp]) -> None:
+            scaled.append(block.ravel())
+            flags.append(np.broadcast_to(flag, block.shape).ravel())
+
+        slots = self.slots(cols)[0]
+        scale(slots[:, :4], slots[:, 4:5])
+        zeroed.append(slots[:, 4])
+        if self.static:
+            static = self.static_slots(cols)[0]
+            scale(static[:, :2], static[:, 2:3])
+            zeroed.append(static[:, 2])
+        if self.pedestrians:
+            walkers = self.pedestrian_slots(cols)[0]
+            scale(walkers[:, :4], walkers[:, 4:5])
+            zeroed.append(walkers[:, 4])
+        if self.headings and self.neighbours:
+            scale(self.neighbour_headings(cols)[0], slots[:, 4:5])
+        if self.route:
+            zeroed.append(np.array([self.block("route").stop - 1]))
+        return tuple(np.concatenate([*parts, np.empty(0, np.intp)]).astype(np.intp)
+                     for parts in (scaled, flags, zeroed))  # type: ignore[return-value]
+
     def neighbour_headings(self, obs: FloatArray) -> FloatArray:
         """View of the neighbour headings of a batch ``(..., size)`` as ``(..., K, 2)``
         (zeros in empty slots); ``ValueError`` for a layout without headings."""
@@ -769,22 +804,9 @@ class Observer:
         valid flags or in empty slots."""
         assert self._rng is not None
         noise = self._rng.normal(0.0, std, obs.shape)
-        slots = self.layout.slots(noise)
-        valid = self.layout.slot_valid(self.layout.slots(obs))
-        slots[..., :4] *= valid[..., None]
-        slots[..., 4] = 0.0
-        if self.layout.static:
-            static = self.layout.static_slots(noise)
-            static[..., :2] *= self.layout.static_slots(obs)[..., 2:3]
-            static[..., 2] = 0.0
-        if self.layout.pedestrians:
-            walkers = self.layout.pedestrian_slots(noise)
-            walkers[..., :4] *= self.layout.pedestrian_slots(obs)[..., 4:5]
-            walkers[..., 4] = 0.0
-        if self.layout.headings and self.layout.neighbours:
-            self.layout.neighbour_headings(noise)[...] *= valid[..., None]
-        if self.layout.route:
-            noise[:, self.layout.block("route").stop - 1] = 0.0  # the valid flag stays exact
+        scaled, flags, zeroed = self.layout.noise_columns
+        noise[:, scaled] *= obs[:, flags]  # float64 noise times a float32 flag of 0 or 1
+        noise[:, zeroed] = 0.0  # the valid flags stay exact
         return noise
 
 

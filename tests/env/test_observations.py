@@ -112,3 +112,35 @@ def test_wall_slot_points_at_the_nearest_wall_within_the_horizon():
 def test_layout_for_size_refuses_impossible_sizes():
     with pytest.raises(ValueError, match="no study-era observation layout has size 8"):
         ob.ObservationLayout.for_size(8)
+
+
+@pytest.mark.parametrize("fields", [
+    {"robots": 4, "neighbours": 6, "scene": "lab", "static_slots": 2, "static_range": 20.0},
+    {"robots": 5, "neighbours": 6, "robot": "turtlebot3_burger"},
+    {"robots": 5, "leader": "person", "crowd": 2, "pedestrian_slots": 3},
+])
+def test_sensing_noise_spares_flags_and_empty_slots(fields):
+    """obs_noise perturbs what is sensed and nothing else: every valid flag stays exactly 0
+    or 1, and an empty slot (a flag of 0) stays all zeros, its heading too."""
+    env = parallel_env(obs_noise=0.3, max_cycles=30, **fields)
+    env.reset_arrays(seed=3)
+    layout = env._observer.layout
+    obs = np.concatenate([env.step_arrays(np.zeros((len(env.agents), 2))).observations
+                          for _ in range(20)])
+    groups = [(layout.slots(obs), 4, [0, 1, 2, 3])]  # (slots, flag column, sensed columns)
+    if layout.static:
+        groups.append((layout.static_slots(obs), 2, [0, 1]))
+    if layout.pedestrians:
+        groups.append((layout.pedestrian_slots(obs), 4, [0, 1, 2, 3]))
+    for slots, flag, sensed in groups:
+        valid = slots[..., flag]
+        assert set(np.unique(valid)) <= {0.0, 1.0}
+        empty = valid == 0.0
+        assert (slots[..., sensed][empty] == 0.0).all()
+        # the noise reached what is sensed: a real slot's values are not round numbers
+        assert (~empty).any() and (slots[..., sensed][~empty] != 0.0).mean() > 0.9
+    assert (layout.slots(obs)[..., 4] == 0.0).any()  # 6 slots, at most 4 robots to fill them
+    if layout.headings:
+        empty = layout.slots(obs)[..., 4] == 0.0
+        assert (layout.neighbour_headings(obs)[empty] == 0.0).all()
+    env.close()
