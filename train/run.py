@@ -270,7 +270,14 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
         raise ValueError("device='cuda' but torch sees no GPU; use device='cpu' or 'auto'")
     torch.set_num_threads(config.resolved_threads())
     meta = model_meta(config)
-    venv = VecMonitor(make_vec_env(config))
+    flock = make_vec_env(config)
+    workers = flock.processes - 1
+    print(f"boids train: {len(flock.specs)} env copies ({flock.num_envs} follower slots) "
+          f"stepped in this process" + (f" and {workers} worker process"
+                                        f"{'es' if workers > 1 else ''}" if workers else "")
+          + f"; {torch.get_num_threads()} torch thread{'s' if torch.get_num_threads() > 1 else ''}"
+          f" on {device}")
+    venv = VecMonitor(flock)
     cls = learner_class(config.algorithm)
     try:
         if resume is not None:  # a checkpoint that cannot be read is refused before writing

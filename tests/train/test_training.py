@@ -1,6 +1,7 @@
 """Training runs: determinism, config validation, `boids train` end to end, SB3Policy."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -185,6 +186,9 @@ def test_a_short_training_says_how_it_goes_and_evaluates_its_final_model(tmp_pat
 
     path = train(TrainConfig(**{**TINY, "eval_every": 1_000_000}), tmp_path / "t")
     out = capsys.readouterr().out
+    # the split and the threads follow the machine's cores (one process and one thread on 2)
+    assert re.search(r"boids train: 2 env copies \(7 follower slots\) stepped in this process"
+                     r"( and 1 worker process)?; \d+ torch threads? on cpu", out), out
     # 1200 follower-steps round up to 1680 (rollouts of 80 steps × 7 slots): a line a tenth
     lines = [line for line in out.splitlines() if " follower-steps (" in line]
     assert [line.split(":")[1].split()[0] for line in lines] == [
