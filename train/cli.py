@@ -56,7 +56,7 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
                         "when the copies' step takes 2 ms or more)")
     p.add_argument("--torch-threads", type=int, default=None, dest="torch_threads",
                    help="learner threads (0: one on 1-2 cores, else the cores the env "
-                        "workers leave)")
+                        "processes leave)")
     p.add_argument("--device", choices=("cpu", "cuda", "auto"), default=None,
                    help="where the policy updates run (cpu)")
     p.add_argument("--group-sizes", type=int, nargs="+", default=None, metavar="N",

@@ -95,7 +95,7 @@ class TrainConfig:
     3 cores on, else 1, and on 2 cores a worker too when the copies' step is slow; see
     ``vec_env.default_processes`` and ``vec_env.SECOND_CORE_STEP``)."""
     torch_threads: int = 0
-    """Torch threads of the learner; 0: the cores the env workers leave (one on 1 or 2
+    """Torch threads of the learner; 0: the cores the env processes leave (one on 1 or 2
     cores, where a second thread spins against the env; see ``vec_env.default_threads``)."""
     device: str = "cpu"
     """Where the policy and its updates run: ``cpu`` (default), ``cuda``, or ``auto`` (cuda
@@ -262,7 +262,7 @@ class TrainConfig:
         return self.processes or default_processes(self.copies)
 
     def resolved_threads(self) -> int:
-        """``torch_threads``, or when it is 0 the cores the env workers leave
+        """``torch_threads``, or when it is 0 the cores the env processes leave
         (``vec_env.default_threads``)."""
         from boids_env.train.vec_env import default_threads
 
