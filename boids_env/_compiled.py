@@ -297,6 +297,31 @@ def _rotated(v, m):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def unicycle_substep(buffer, n, hx, hy, c, s, turn, theta, velocities, speed
+                     ):  # pragma: no cover - compiled
+    """``Unicycle._substep``'s arithmetic in one loop: every heading (``hx``, ``hy``) turned
+    by the substep's (``c``, ``s``), ``theta`` advanced by ``turn``, the robots' velocities
+    (``velocities``, pymunk's flat read) copied into ``buffer``'s rows ``0..n-1`` and the
+    control bodies' rows ``n..2n-1`` pointed along the new heading at ``speed`` (angle, vx,
+    vy). The same products, sums and roundings as the numpy code, element by element."""
+    for i in range(n):
+        x = hx[i]
+        y = hy[i]
+        nx = x * c[i]
+        nx -= y * s[i]
+        ny = x * s[i]
+        ny += y * c[i]
+        hx[i] = nx
+        hy[i] = ny
+        theta[i] += turn[i]
+        buffer[i, 1] = velocities[2 * i]
+        buffer[i, 2] = velocities[2 * i + 1]
+        buffer[n + i, 0] = theta[i]
+        buffer[n + i, 1] = nx * speed[i]
+        buffer[n + i, 2] = ny * speed[i]
+
+
+@njit(cache=True)
 def batch_after(positions, velocities, commanded, angle, ints, params, bounds, counts, codes,
                 obs, terms):  # pragma: no cover - compiled
     """The study's observations, violation flags and reward terms of K copies in one call.

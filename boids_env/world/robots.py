@@ -54,6 +54,8 @@ import numpy.typing as npt
 import pymunk
 import pymunk.batch as batch
 
+from boids_env import kernels
+
 FloatArray = npt.NDArray[np.float64]
 
 DRIVES = ("holonomic", "unicycle")
@@ -415,7 +417,8 @@ class Unicycle(RobotModel):
         self._targets = self._buffer[n : 2 * n]  # the control bodies' rows
         self._robots_velocity = self._buffer[:n, 1:]
         world._write_buffer().set_float_buf(self._flat)  # pymunk reads it every substep
-        world._run_substeps(self._substep)
+        compiled = kernels.compiled()
+        world._run_substeps(self._substep if compiled is None else self._compiled_substep)
         # keep the heading a unit vector (each turn is exact only to rounding)
         norm = np.sqrt(self._hx * self._hx + self._hy * self._hy)
         self.vectors = np.stack([self._hx / norm, self._hy / norm], axis=1)
@@ -444,6 +447,20 @@ class Unicycle(RobotModel):
         targets[:, 0] = theta
         np.multiply(hx, speed, out=targets[:, 1])
         np.multiply(hy, speed, out=targets[:, 2])
+        batch.set_space_bodies(world.space, _ANGLE_VELOCITY, world._write_buffer())
+
+
+    def _compiled_substep(self, world: World, h: float) -> None:
+        """:meth:`_substep` with its arithmetic in one compiled loop (the same bits)."""
+        compiled = kernels.loaded()
+        assert compiled is not None
+        c, s, turn = self._turns[h]
+        read = world._read_buffer()
+        read.clear()
+        batch.get_space_bodies(world.space, _VELOCITY, read)
+        velocities = np.frombuffer(read.float_buf(), dtype=np.float64)
+        compiled.unicycle_substep(self._buffer, world.n, self._hx, self._hy, c, s, turn,
+                                  self.theta, velocities, self._speed)
         batch.set_space_bodies(world.space, _ANGLE_VELOCITY, world._write_buffer())
 
 
