@@ -6,8 +6,9 @@ study blocks, the violation flags with their reward terms, each follower's neare
 the safety flags and the speed limit each run as one numba loop instead
 (:mod:`boids_env._compiled`), and so do the scene's queries (nearest wall points, wall
 flags, sight lines, clearance, ray casts), the safety filter, route sensing's sight lines,
-a learned actor's elementwise work, many robots' neighbours on a grid (the KD-tree's bits) and
-the Reynolds policy's rule forces; each rounds exactly as the numpy code it replaces:
+a learned actor's elementwise work, many robots' neighbours on a grid (the KD-tree's bits),
+the Reynolds policy's rule forces and a unicycle's turn every physics substep; each rounds
+exactly as the numpy code it replaces:
 trajectories, rewards and digests stay the same bits (``tests/env/test_kernels.py`` compares
 whole episodes of both paths).
 
