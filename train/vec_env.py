@@ -85,7 +85,12 @@ class FlockVecEnv(VecEnv):
             ctx = mp.get_context("forkserver" if "forkserver" in mp.get_all_start_methods()
                                  else "spawn")
             remote = [RemoteShard(group, obs_space.shape[0], ctx) for group in groups[1:]]
-        self.shards: list[Any] = [Shard(groups[0]), *remote]
+        try:
+            self.shards: list[Any] = [Shard(groups[0]), *remote]
+        except BaseException:  # no worker or shared memory left behind by a failed build
+            for shard in remote:
+                shard.close()
+            raise
         self.copy_sizes = [spec.robots - 1 for spec in specs]
         self.shard_sizes = [sum(s.sizes) for s in self.shards]
         self._copy_index = [(si, ci) for si, s in enumerate(self.shards)

@@ -251,3 +251,18 @@ def test_a_worker_imports_neither_torch_nor_stable_baselines3():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120)
     assert done.returncode == 0, done.stderr
+
+
+def test_a_failed_build_leaves_no_worker_behind(monkeypatch):
+    import multiprocessing as mp
+
+    import boids_env.train.vec_env as vec_env
+
+    def broken(specs):
+        raise RuntimeError("this process's copies could not be built")
+
+    before = set(mp.active_children())
+    monkeypatch.setattr(vec_env, "Shard", broken)
+    with pytest.raises(RuntimeError, match="could not be built"):
+        FlockVecEnv(_specs(5, 6), processes=2)
+    assert not [p for p in set(mp.active_children()) - before if p.is_alive()]
