@@ -271,12 +271,11 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     torch.set_num_threads(config.resolved_threads())
     meta = model_meta(config)
     flock = make_vec_env(config)
-    workers = flock.processes - 1
+    workers, threads = flock.processes - 1, torch.get_num_threads()
+    beside = f" and {workers} worker process{'es' * (workers > 1)}" if workers else ""
     print(f"boids train: {len(flock.specs)} env copies ({flock.num_envs} follower slots) "
-          f"stepped in this process" + (f" and {workers} worker process"
-                                        f"{'es' if workers > 1 else ''}" if workers else "")
-          + f"; {torch.get_num_threads()} torch thread{'s' if torch.get_num_threads() > 1 else ''}"
-          f" on {device}")
+          f"stepped in this process{beside}; {threads} torch thread{'s' * (threads > 1)} "
+          f"on {device}")
     venv = VecMonitor(flock)
     cls = learner_class(config.algorithm)
     try:

@@ -374,6 +374,7 @@ class Unicycle(RobotModel):
         self.vectors = unit_vectors(start)
         self.omega = np.zeros(n)
         self._speed = np.zeros(n)
+        self._compiled = False  # set by advance: this step's substeps compiled or numpy
         self._buffer = np.zeros((2 * n + 1, 3))  # per body: angle, vx, vy (batch order)
         self._buffer[n : 2 * n, 0] = start
         self._flat = self._buffer.reshape(-1)  # a view: what pymunk reads each substep
@@ -417,8 +418,8 @@ class Unicycle(RobotModel):
         self._targets = self._buffer[n : 2 * n]  # the control bodies' rows
         self._robots_velocity = self._buffer[:n, 1:]
         world._write_buffer().set_float_buf(self._flat)  # pymunk reads it every substep
-        compiled = kernels.compiled()
-        world._run_substeps(self._substep if compiled is None else self._compiled_substep)
+        self._compiled = kernels.compiled() is not None  # one path for the step's substeps
+        world._run_substeps(self._substep)
         # keep the heading a unit vector (each turn is exact only to rounding)
         norm = np.sqrt(self._hx * self._hx + self._hy * self._hy)
         self.vectors = np.stack([self._hx / norm, self._hy / norm], axis=1)
@@ -427,40 +428,31 @@ class Unicycle(RobotModel):
         """Turns every heading by ω·h and points the control bodies (angle and velocity)
         along it, before pymunk integrates the substep."""
         c, s, turn = self._turns[h]
-        hx, hy = self._hx, self._hy
-        turned = hx * c
-        turned -= hy * s
-        np.multiply(hx, s, out=hx)
-        hx += hy * c
-        hx, hy = turned, hx  # new (hx, hy)
-        self._hx, self._hy = hx, hy
-        theta = self.theta
-        theta += turn
         read = world._read_buffer()
         read.clear()
         batch.get_space_bodies(world.space, _VELOCITY, read)
         velocities = np.frombuffer(read.float_buf(), dtype=np.float64)
         n = world.n
-        # the robots' own velocities, written back as they are
-        self._robots_velocity[...] = velocities[: 2 * n].reshape(n, 2)
-        targets, speed = self._targets, self._speed  # turned and moving along the heading
-        targets[:, 0] = theta
-        np.multiply(hx, speed, out=targets[:, 1])
-        np.multiply(hy, speed, out=targets[:, 2])
-        batch.set_space_bodies(world.space, _ANGLE_VELOCITY, world._write_buffer())
-
-
-    def _compiled_substep(self, world: World, h: float) -> None:
-        """:meth:`_substep` with its arithmetic in one compiled loop (the same bits)."""
-        compiled = kernels.loaded()
-        assert compiled is not None
-        c, s, turn = self._turns[h]
-        read = world._read_buffer()
-        read.clear()
-        batch.get_space_bodies(world.space, _VELOCITY, read)
-        velocities = np.frombuffer(read.float_buf(), dtype=np.float64)
-        compiled.unicycle_substep(self._buffer, world.n, self._hx, self._hy, c, s, turn,
-                                  self.theta, velocities, self._speed)
+        compiled = kernels.loaded() if self._compiled else None
+        if compiled is not None:  # the numpy below in one loop, the same bits
+            compiled.unicycle_substep(self._buffer, n, self._hx, self._hy, c, s, turn,
+                                      self.theta, velocities, self._speed)
+        else:
+            hx, hy = self._hx, self._hy
+            turned = hx * c
+            turned -= hy * s
+            np.multiply(hx, s, out=hx)
+            hx += hy * c
+            hx, hy = turned, hx  # new (hx, hy)
+            self._hx, self._hy = hx, hy
+            theta = self.theta
+            theta += turn
+            # the robots' own velocities, written back as they are
+            self._robots_velocity[...] = velocities[: 2 * n].reshape(n, 2)
+            targets, speed = self._targets, self._speed  # turned, moving along the heading
+            targets[:, 0] = theta
+            np.multiply(hx, speed, out=targets[:, 1])
+            np.multiply(hy, speed, out=targets[:, 2])
         batch.set_space_bodies(world.space, _ANGLE_VELOCITY, world._write_buffer())
 
 
