@@ -86,41 +86,76 @@ def _grid(positions, horizon):  # pragma: no cover - compiled
     return cx, cy, nx, ny, start, members, sorted_xy
 
 
+RANK_LIMIT = 48
+"""Up to this many robots within a follower's horizon, :func:`nearest_grid` places each by
+counting the nearer ones (no branch to mispredict: 3x faster than an insertion sort at
+1000 robots and 15 neighbours a follower); beyond it, it sorts them by insertion."""
+
+
 @njit(cache=True)
-def _grid_scan(r, px, py, horizon, cx, cy, nx, ny, start, members, xy, kept_d,
-               kept_j):  # pragma: no cover - compiled
-    """Robot ``r``'s nearest robots within ``horizon`` (at most ``len(kept_d)``), sorted by
-    distance into ``kept_d`` and ``kept_j``: their count, or -1 for another robot exactly on
-    it."""
-    size = kept_d.shape[0]
-    far = horizon * horizon * (1.0 + 1e-9)  # beyond the horizon whatever the rounding
+def _grid_gather(r, px, py, horizon, cx, cy, nx, ny, start, members, xy, cand_d,
+                 cand_j):  # pragma: no cover - compiled
+    """Robot ``r``'s robots within ``horizon`` (unsorted) into ``cand_d`` and ``cand_j``
+    (room for every robot and one more): their count, or -1 for another robot exactly on
+    it. Branch-free: every robot of the 3 x 3 cells is written at ``count``, which moves on
+    only past one within the horizon that is not ``r`` itself."""
     count = 0
+    on = False
     for gy in range(max(cy[r] - 1, 0), min(cy[r] + 2, ny)):
         for gx in range(max(cx[r] - 1, 0), min(cx[r] + 2, nx)):
             c = gy * nx + gx
             for m in range(start[c], start[c + 1]):
                 dx = px - xy[m, 0]
                 dy = py - xy[m, 1]
-                s2 = dx * dx + dy * dy
-                if s2 > far:
-                    continue
-                d = math.sqrt(s2)
-                if d <= 0.0:
-                    if members[m] != r:
-                        return -1
-                    continue
-                if d > horizon or (count == size and not d < kept_d[size - 1]):
-                    continue
-                q = count if count < size else size - 1
-                while q > 0 and kept_d[q - 1] > d:
-                    kept_d[q] = kept_d[q - 1]
-                    kept_j[q] = kept_j[q - 1]
-                    q -= 1
-                kept_d[q] = d
-                kept_j[q] = members[m]
-                if count < size:
-                    count += 1
-    return count
+                d = math.sqrt(dx * dx + dy * dy)
+                j = members[m]
+                cand_d[count] = d
+                cand_j[count] = j
+                on |= (d <= 0.0) & (j != r)
+                count += (d > 0.0) & (d <= horizon)
+    return -1 if on else count
+
+
+@njit(cache=True)
+def _place_ranked(i, count, cand_d, cand_j, index, distance):  # pragma: no cover - compiled
+    """Follower ``i``'s ``count`` candidates into its row of ``index`` and ``distance`` by
+    rank (how many are strictly nearer); False where two share a rank within the row (an
+    exact tie: the caller declines)."""
+    k = index.shape[1]
+    for t in range(count):
+        d = cand_d[t]
+        rank = 0
+        for s in range(count):
+            rank += np.intp(cand_d[s] < d)
+        if rank < k:
+            if index[i, rank] >= 0:
+                return False
+            index[i, rank] = cand_j[t]
+            distance[i, rank] = d
+    return True
+
+
+@njit(cache=True)
+def _place_sorted(i, count, cand_d, cand_j, index, distance):  # pragma: no cover - compiled
+    """:func:`_place_ranked` by an insertion sort of the candidates (many of them)."""
+    for t in range(1, count):
+        d = cand_d[t]
+        j = cand_j[t]
+        q = t
+        while q > 0 and cand_d[q - 1] > d:
+            cand_d[q] = cand_d[q - 1]
+            cand_j[q] = cand_j[q - 1]
+            q -= 1
+        cand_d[q] = d
+        cand_j[q] = j
+    k = index.shape[1]
+    for q in range(1, min(count, k + 1)):
+        if cand_d[q] == cand_d[q - 1]:
+            return False
+    for q in range(min(count, k)):
+        index[i, q] = cand_j[q]
+        distance[i, q] = cand_d[q]
+    return True
 
 
 @njit(cache=True)
@@ -132,24 +167,24 @@ def nearest_grid(positions, horizon, k):  # pragma: no cover - compiled
     declines the step (the KD-tree then runs it) where its order could differ: two of a
     follower's k + 1 nearest exactly equally far (the KD-tree orders such ties its own way)
     or another robot exactly on a follower (the KD-tree's k + 1 query then keeps fewer)."""
-    followers = positions.shape[0] - 1
+    n = positions.shape[0]
+    followers = n - 1
     index = np.full((followers, k), -1, dtype=np.intp)
     distance = np.full((followers, k), np.inf)
     cx, cy, nx, ny, start, members, xy = _grid(positions, horizon)
-    kept_d = np.empty(k + 1)
-    kept_j = np.empty(k + 1, dtype=np.intp)
+    cand_d = np.empty(n + 1)
+    cand_j = np.empty(n + 1, dtype=np.intp)
     for i in range(followers):
         r = i + 1
-        count = _grid_scan(r, positions[r, 0], positions[r, 1], horizon, cx, cy, nx, ny,
-                           start, members, xy, kept_d, kept_j)
+        count = _grid_gather(r, positions[r, 0], positions[r, 1], horizon, cx, cy, nx, ny,
+                             start, members, xy, cand_d, cand_j)
         if count < 0:
             return 1, index, distance
-        for q in range(1, count):
-            if kept_d[q] == kept_d[q - 1]:
-                return 1, index, distance
-        for q in range(min(count, k)):
-            index[i, q] = kept_j[q]
-            distance[i, q] = kept_d[q]
+        placed = (_place_ranked(i, count, cand_d, cand_j, index, distance)
+                  if count <= RANK_LIMIT
+                  else _place_sorted(i, count, cand_d, cand_j, index, distance))
+        if not placed:
+            return 1, index, distance
     return 0, index, distance
 
 

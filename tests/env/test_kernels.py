@@ -248,12 +248,20 @@ def test_grid_neighbour_search_gives_the_kd_trees_bits_or_declines():
     grid = np.array([[x, y] for x in range(12) for y in range(10)], dtype=float) * 0.5
     jittered = grid + rng.uniform(-0.01, 0.01, grid.shape)
     on_top = np.vstack([jittered, jittered[7]])
-    for positions in (grid, on_top):
-        assert _compiled.nearest_grid(positions, 1.0, 6)[0] == 1
-        got, want = _both_neighbours(positions, 1.0, 6)
+    # a horizon of 1 m holds 12 robots of the lattice (placed by rank), one of 3 m 113 (more
+    # than _compiled.RANK_LIMIT: sorted)
+    for positions, horizon in ((grid, 1.0), (grid, 3.0), (on_top, 1.0), (on_top, 3.0)):
+        assert _compiled.nearest_grid(positions, horizon, 6)[0] == 1
+        got, want = _both_neighbours(positions, horizon, 6)
         _same(got[0], want[0], "declined index")
         _same(got[1], want[1], "declined distance")
-    assert _compiled.nearest_grid(jittered, 1.0, 6)[0] == 0
+    for horizon in (1.0, 3.0):
+        status, index, distance = _compiled.nearest_grid(jittered, horizon, 6)
+        assert status == 0
+        with kernels.reference():
+            want = nearest_neighbours(jittered, horizon, 6)
+        _same(index, want[0], f"jittered index, horizon {horizon}")
+        _same(distance, want[1], f"jittered distance, horizon {horizon}")
 
 
 def test_clip_speed_kernel_matches_on_ordinary_zero_and_huge_rows():
