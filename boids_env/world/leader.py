@@ -193,19 +193,27 @@ class CurveLeader(Leader):
         self._points = curve(phase)
         seg = np.linalg.norm(np.diff(self._points, axis=0), axis=1)
         self._arc = np.concatenate([[0.0], np.cumsum(seg)])
+        # contiguous columns: np.interp copies a strided column on every call (4001 points
+        # a lap)
+        self._xs = np.ascontiguousarray(self._points[:, 0])
+        self._ys = np.ascontiguousarray(self._points[:, 1])
 
-    def _point(self, s: float) -> Vec:
-        s = min(max(s, 0.0), self._arc[-1])
-        return np.array([np.interp(s, self._arc, self._points[:, 0]),
-                         np.interp(s, self._arc, self._points[:, 1])])
+    def _here_and_ahead(self, s: float, ahead: float) -> tuple[Vec, Vec]:
+        """The curve's points at arc lengths ``s`` and ``s + ahead`` (each clamped to the
+        curve), interpolated as two calls of ``np.interp`` on both lengths (the same
+        arithmetic per length as one call each)."""
+        end = self._arc[-1]
+        at = [min(max(s, 0.0), end), min(max(s + ahead, 0.0), end)]
+        x = np.interp(at, self._arc, self._xs)
+        y = np.interp(at, self._arc, self._ys)
+        return np.array([x[0], y[0]]), np.array([x[1], y[1]])
 
     def _move(self, t: float, position: Vec) -> Vec:
         s = self.speed * t
         if s >= self._arc[-1]:
             self.finished = True
             return np.zeros(2)
-        ahead = self._point(s + 0.05)
-        here = self._point(s)
+        here, ahead = self._here_and_ahead(s, 0.05)
         step = ahead - here  # its length elementwise: a 1-D norm is a BLAS dot (per-CPU bits)
         tangent = step / max(math.sqrt(step[0] * step[0] + step[1] * step[1]), 1e-12)
         out = self.speed * tangent + self.gain * (here - position)

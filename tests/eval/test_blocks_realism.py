@@ -55,8 +55,9 @@ def test_each_block_scores_what_a_five_seed_evaluation_of_its_seeds_reports(tmp_
     assert list(blocks["seeds"]) == ["0-4", "5-9"] and list(blocks["of"]) == [27, 27]
     report = (both / "report.md").read_text()
     assert "Reproduction score in blocks of 5 seeds" in report
-    # each block's score is exactly what an evaluation of those 5 seeds alone reports
-    for row in blocks.itertuples():
+    # the second block's score is exactly what an evaluation of its 5 seeds alone reports
+    # (the first block's seeds are an evaluation's own first five: nothing to offset)
+    for row in list(blocks.itertuples())[1:]:
         first = int(row.seeds.split("-")[0])
         alone = tmp_path / f"alone_{row.block}"
         run_suite(policy, short.with_seeds(list(range(first, first + 5))), alone, workers=2,
