@@ -660,6 +660,68 @@ def within(points, reach, shapes, qa, qb, qr, table, origin, shape, grid, cells,
 
 
 @njit(cache=True)
+def box_within(points, box, margins):  # pragma: no cover - compiled
+    """``Scene._box_within``: whether each point (P, 2) is within the sum of ``margins`` of
+    the box (xmin, ymin, xmax, ymax)'s walls, the margins subtracted one by one from the
+    far corner and the negated near one, as the study's arena code did."""
+    hx, hy, lx, ly = box[2], box[3], -box[0], -box[1]
+    for m in margins:
+        hx = hx - m
+        hy = hy - m
+        lx = lx - m
+        ly = ly - m
+    out = np.empty(points.shape[0], dtype=np.bool_)
+    for i in range(points.shape[0]):
+        px, py = points[i, 0], points[i, 1]
+        out[i] = (px >= hx) | (py >= hy) | (-px >= lx) | (-py >= ly)
+    return out
+
+
+@njit(cache=True)
+def static_block(offsets, valid, frame, turned):  # pragma: no cover - compiled
+    """``observations._static_block`` from ``Scene.nearest_points``'s offsets (P, M, 2) and
+    valid flags (P, M): (P, 3M) float64, each slot's offset turned into ``frame`` (when
+    ``turned``; ``vectors.times_matrix``'s products and add) times its flag, then the flag."""
+    p, slots = valid.shape
+    out = np.empty((p, 3 * slots))
+    for i in range(p):
+        for k in range(slots):
+            x, y = offsets[i, k, 0], offsets[i, k, 1]
+            if turned:
+                x, y = (x * frame[0, 0] + y * frame[1, 0], x * frame[0, 1] + y * frame[1, 1])
+            flag = 1.0 if valid[i, k] else 0.0
+            out[i, 3 * k] = x * flag
+            out[i, 3 * k + 1] = y * flag
+            out[i, 3 * k + 2] = flag
+    return out
+
+
+@njit(cache=True)
+def noisy_observations(obs, noise, scaled, flags, zeroed, low, high):  # pragma: no cover
+    """``Observer``'s sensing noise and bounds: ``noise`` (F, D) float64 (numpy's draw,
+    overwritten) times each ``scaled`` column's valid flag (the ``flags`` column of ``obs``),
+    zero in the ``zeroed`` columns, added to ``obs`` (F, D) float32 in float64, clipped to
+    ``low`` and ``high`` as ``np.clip`` does (a NaN stays; ``x > lo ? x : lo``, then
+    ``x < hi ? x : hi``) and rounded to float32."""
+    rows, cols = obs.shape
+    out = np.empty((rows, cols), dtype=np.float32)
+    for i in range(rows):
+        for q in range(scaled.shape[0]):
+            noise[i, scaled[q]] = noise[i, scaled[q]] * np.float64(obs[i, flags[q]])
+        for q in range(zeroed.shape[0]):
+            noise[i, zeroed[q]] = 0.0
+        for c in range(cols):
+            v = np.float64(obs[i, c]) + noise[i, c]
+            if not math.isnan(v):
+                lo = np.float64(low[c])
+                hi = np.float64(high[c])
+                v = v if v > lo else lo
+                v = v if v < hi else hi
+            out[i, c] = np.float32(v)
+    return out
+
+
+@njit(cache=True)
 def in_sight_ahead(points, node, nxt, centres, free, origin_x, origin_y, cell, t,
                    steps):  # pragma: no cover - compiled
     """``route._in_sight_ahead``: the farthest node up to ``steps`` nodes along each

@@ -68,6 +68,8 @@ winds, and its wall penalty lengthens it)."""
 KD_TREE_MIN_ROBOTS = 96
 """From this group size on, neighbours are found with a KD-tree instead of all pairs
 (measured: all-pairs wins below about 100 robots)."""
+_NO_FRAME = np.eye(2)
+"""The frame the compiled static block is given in the world frame (not applied)."""
 
 
 BLOCKS = ("own_velocity", "leader_position", "leader_velocity", "neighbours", "static", "lidar",
@@ -614,6 +616,10 @@ def _static_block(points: FloatArray, slots: int, sensors: Sensors,
     """(F, 3·M): the static slots of every follower (offsets in the frame, valid flags)."""
     assert sensors.scene is not None
     offsets, valid = sensors.scene.nearest_points(points, slots, sensors.static_range)
+    compiled = kernels.compiled()
+    if compiled is not None:  # the same products in one loop
+        turned = frame is not None
+        return compiled.static_block(offsets, valid, frame if turned else _NO_FRAME, turned)
     if frame is not None:
         offsets = times_matrix(offsets, frame)
     block = np.concatenate([offsets * valid[..., None], valid[..., None]], axis=2)
@@ -775,11 +781,20 @@ class Observer:
                 seen = obs[rows, self.layout.leader_velocity].astype(np.float64)
                 speed = np.sqrt(seen[:, 0] * seen[:, 0] + seen[:, 1] * seen[:, 1])
                 obs[rows, self.layout.leader_velocity] = speed[:, None] * route[:, 0:2]
+        compiled = kernels.compiled()
+        clipped = False
         if cfg.obs_noise > 0:
             if self._rng is None:
                 raise RuntimeError("Observer.reset(rng) must give a generator for obs_noise")
-            obs = obs + self._noise(obs, cfg.obs_noise)
-        if cfg.obs_noise > 0 or cfg.frame != "world":
+            if compiled is not None:  # the masking, the sum and the clip in one loop
+                scaled, flags, zeroed = self.layout.noise_columns
+                obs = compiled.noisy_observations(
+                    obs, self._rng.normal(0.0, cfg.obs_noise, obs.shape), scaled, flags,
+                    zeroed, self.space.low, self.space.high)
+                clipped = True
+            else:
+                obs = obs + self._noise(obs, cfg.obs_noise)
+        if not clipped and (cfg.obs_noise > 0 or cfg.frame != "world"):
             if obs.dtype == np.float32:  # this call's own array (no noise added): in place
                 np.clip(obs, self.space.low, self.space.high, out=obs)
             else:

@@ -245,6 +245,14 @@ class Scene:
         return np.concatenate([np.array([x1, y1]) - points, points - np.array([x0, y0])],
                               axis=1)
 
+    def _box_array(self) -> FloatArray:
+        """The box (xmin, ymin, xmax, ymax) as the compiled queries take it (zeros without
+        one)."""
+        if "box array" not in self._cache:
+            self._cache["box array"] = np.array(
+                self.box if self.box is not None else (0.0, 0.0, 0.0, 0.0), dtype=float)
+        return self._cache["box array"]
+
     def _box_within(self, points: FloatArray, margins: tuple[float, ...]) -> BoolArray:
         x0, y0, x1, y1 = self.box  # type: ignore[misc]
         hi = np.array([x1, y1], dtype=float)
@@ -260,9 +268,13 @@ class Scene:
         geometry (a robot of radius r touches at ``within(p, r, tolerance)``)."""
         pts = np.asarray(points, dtype=float)
         compiled = kernels.compiled()
-        if (compiled is not None and self.box is None and not self.polygons
-                and pts.ndim == 2 and np.isfinite(pts).all()):
-            return self._within_compiled(compiled, pts, sum(margins))
+        if compiled is not None and pts.ndim == 2:
+            if (self.box is not None and not len(self._qr) and not self.polygons
+                    and self.grid is None):  # a box alone (an arena): one loop
+                return compiled.box_within(np.ascontiguousarray(pts), self._box_array(),
+                                           np.array(margins, dtype=np.float64))
+            if self.box is None and not self.polygons and np.isfinite(pts).all():
+                return self._within_compiled(compiled, pts, sum(margins))
         shape = pts.shape[:-1]
         flat = pts.reshape(-1, 2)
         out = np.zeros(len(flat), dtype=bool)
@@ -366,9 +378,9 @@ class Scene:
             origin, shape, table = (self._kernel_index(reach) if shapes
                                     else (np.zeros(3), np.ones(2, dtype=np.intp),
                                           np.zeros((1, 1), dtype=np.intp)))
-            box = np.array(self.box if self.box is not None else (0.0, 0.0, 0.0, 0.0), float)
             return compiled.nearest_points(np.ascontiguousarray(pts), int(slots),
-                                           float(reach), box, self.box is not None, qa, qb,
+                                           float(reach), self._box_array(),
+                                           self.box is not None, qa, qb,
                                            qr, table, origin, shape, shapes, SECTOR_COS)
         cand_off, cand_d = self._surface_candidates(pts, reach)
         p = len(pts)

@@ -73,6 +73,12 @@ EPISODES = [
     # static slots and the leader frame, with the safety reward terms and sensing noise
     ({"sense_walls": True, "frame": "leader", "reward": "safe", "obs_noise": 0.02},
      "reynolds", 300),
+    # ppo_safe's copies on a circle: random commands drive followers into the arena's walls
+    # (the wall flags of the box, the static slots), the noise pushes observations past
+    # their bounds (the clip)
+    ({"robots": 13, "sense_walls": True, "frame": "leader", "relative_actions": True,
+      "reward": "safe", "reward_gap": 10.0, "obs_noise": 0.05, "path": "circle",
+      "startup_hold": True}, "random", 250),
     ({"scene": "pillars", "static_slots": 2, "lidar_rays": 8}, "reynolds", 200),
     # robots with headings (neighbour heading blocks read the kernel's neighbour index)
     ({"robot": "turtlebot3_burger", "robots": 9}, "random", 150),
@@ -262,6 +268,47 @@ def test_grid_neighbour_search_gives_the_kd_trees_bits_or_declines():
             want = nearest_neighbours(jittered, horizon, 6)
         _same(index, want[0], f"jittered index, horizon {horizon}")
         _same(distance, want[1], f"jittered distance, horizon {horizon}")
+
+
+def test_noise_kernel_masks_adds_and_clips_as_numpy_does():
+    from boids_env import _compiled
+
+    rng = np.random.default_rng(3)
+    low = np.array([-1.0, 0.0, 0.0, -3.0, -0.0], dtype=np.float32)
+    high = np.array([1.0, 1.0, 3.0, 3.0, 0.0], dtype=np.float32)
+    # values at, inside and past the bounds, signed zeros (np.clip picks the bound of an
+    # equal pair: -0.0 at a bound of 0.0 comes out 0.0), NaN and infinities
+    values = np.array([-1.0, -0.0, 0.0, 1.0, 3.0, 0.5, -2.0, 4.0, np.nan, np.inf, -np.inf],
+                      dtype=np.float32)
+    obs = rng.choice(values, (400, 5))
+    obs[:, 1] = rng.choice([0.0, 1.0], 400)  # column 1: a valid flag
+    noise = rng.choice(np.array([0.0, -0.0, 1e-3, -1e-3, 2.5, -2.5, np.nan]), (400, 5))
+    scaled, flags, zeroed = np.array([0, 2, 3, 4]), np.array([1, 1, 1, 1]), np.array([1])
+    want = noise.copy()
+    want[:, scaled] *= obs[:, flags]
+    want[:, zeroed] = 0.0
+    want = np.clip(obs + want, low, high).astype(np.float32)
+    _same(_compiled.noisy_observations(obs, noise.copy(), scaled, flags, zeroed, low, high),
+          want, "noisy observations")
+
+
+def test_box_wall_flags_kernel_matches_at_the_margins():
+    from boids_env import _compiled
+    from boids_env.world.scene import Scene
+
+    scene = Scene("box", box=(-5.0, -4.0, 5.0, 4.0))
+    margins = (0.1, 0.05)
+    edge = np.array([5.0 - 0.1 - 0.05, 4.0 - 0.1 - 0.05, -5.0 + 0.1 + 0.05, -4.0 + 0.15])
+    rng = np.random.default_rng(0)
+    points = rng.uniform(-5.5, 5.5, (500, 2))
+    points[:40] = rng.choice(edge, (40, 2))  # on the margins, as the float sums land
+    points[40:42] = [[np.nan, 0.0], [np.inf, 0.0]]
+    with kernels.reference():
+        want = scene.within(points, *margins)
+    got = _compiled.box_within(points, np.array(scene.box), np.array(margins))
+    _same(got, want, "box wall flags")
+    assert got[:40].any() and not got[40] and got[41]
+    _same(scene.within(points, *margins), want, "Scene.within, compiled")
 
 
 def test_clip_speed_kernel_matches_on_ordinary_zero_and_huge_rows():
