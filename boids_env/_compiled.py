@@ -171,6 +171,9 @@ def nearest_grid(positions, horizon, k):  # pragma: no cover - compiled
     followers = n - 1
     index = np.full((followers, k), -1, dtype=np.intp)
     distance = np.full((followers, k), np.inf)
+    for j in range(n):  # a NaN or infinite coordinate has no cell: the KD-tree decides
+        if not (math.isfinite(positions[j, 0]) and math.isfinite(positions[j, 1])):
+            return 1, index, distance
     cx, cy, nx, ny, start, members, xy = _grid(positions, horizon)
     cand_d = np.empty(n + 1)
     cand_j = np.empty(n + 1, dtype=np.intp)

@@ -268,9 +268,10 @@ class Scene:
         geometry (a robot of radius r touches at ``within(p, r, tolerance)``)."""
         pts = np.asarray(points, dtype=float)
         compiled = kernels.compiled()
-        if compiled is not None and pts.ndim == 2:
+        if compiled is not None and pts.ndim == 2 and pts.shape[1] == 2:
             if (self.box is not None and not len(self._qr) and not self.polygons
-                    and self.grid is None):  # a box alone (an arena): one loop
+                    and self.grid is None and all(np.ndim(m) == 0 for m in margins)):
+                # a box alone (an arena), scalar margins: one loop
                 return compiled.box_within(np.ascontiguousarray(pts), self._box_array(),
                                            np.array(margins, dtype=np.float64))
             if self.box is None and not self.polygons and np.isfinite(pts).all():

@@ -261,6 +261,10 @@ def test_grid_neighbour_search_gives_the_kd_trees_bits_or_declines():
         got, want = _both_neighbours(positions, horizon, 6)
         _same(got[0], want[0], "declined index")
         _same(got[1], want[1], "declined distance")
+    for bad in (np.inf, np.nan):  # no cell for it (an infinite one once never ended)
+        broken = jittered.copy()
+        broken[5, 1] = bad
+        assert _compiled.nearest_grid(broken, 1.0, 6)[0] == 1
     for horizon in (1.0, 3.0):
         status, index, distance = _compiled.nearest_grid(jittered, horizon, 6)
         assert status == 0
@@ -309,6 +313,8 @@ def test_box_wall_flags_kernel_matches_at_the_margins():
     _same(got, want, "box wall flags")
     assert got[:40].any() and not got[40] and got[41]
     _same(scene.within(points, *margins), want, "Scene.within, compiled")
+    with pytest.raises(ValueError):  # points (P, 3): refused, never read as pairs
+        scene.within(np.zeros((4, 3)), 0.1)
 
 
 def test_clip_speed_kernel_matches_on_ordinary_zero_and_huge_rows():
