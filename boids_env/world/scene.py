@@ -228,6 +228,17 @@ class Scene:
                                 np.array(shape, dtype=np.intp), np.ascontiguousarray(table))
         return self._cache[key]
 
+    def _kernel_index_or_none(self, reach: float, shapes: bool
+                              ) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+        """:meth:`_kernel_index` for ``reach`` when the scene has shapes, else the empty
+        index the compiled queries take in its place."""
+        if shapes:
+            return self._kernel_index(reach)
+        if "no index" not in self._cache:
+            self._cache["no index"] = (np.zeros(3), np.ones(2, dtype=np.intp),
+                                       np.zeros((1, 1), dtype=np.intp))
+        return self._cache["no index"]
+
     def _query_arrays(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The query capsules plus the dummy one at the end."""
         if "padded" not in self._cache:
@@ -292,9 +303,7 @@ class Scene:
         compiled call: the same clearances and cells."""
         shapes = len(self._qr) > 0
         qa, qb, qr = self._query_arrays()
-        origin, shape, table = (self._kernel_index(reach) if shapes
-                                else (np.zeros(3), np.ones(2, dtype=np.intp),
-                                      np.zeros((1, 1), dtype=np.intp)))
+        origin, shape, table = self._kernel_index_or_none(reach, shapes)
         grid = self.grid
         if grid is not None:
             x0, y0, yaw = grid.origin
@@ -376,9 +385,7 @@ class Scene:
         if (compiled is not None and (shapes or self.box is not None) and pts.ndim == 2
                 and np.isfinite(pts).all()):  # the same bits in one loop (boids_env.kernels)
             qa, qb, qr = self._query_arrays()
-            origin, shape, table = (self._kernel_index(reach) if shapes
-                                    else (np.zeros(3), np.ones(2, dtype=np.intp),
-                                          np.zeros((1, 1), dtype=np.intp)))
+            origin, shape, table = self._kernel_index_or_none(reach, shapes)
             return compiled.nearest_points(np.ascontiguousarray(pts), int(slots),
                                            float(reach), self._box_array(),
                                            self.box is not None, qa, qb,
@@ -441,12 +448,10 @@ class Scene:
                 and np.isfinite(origins).all() and np.isfinite(directions).all()):
             # the same ranges in one loop (boids_env.kernels)
             qa, qb, qr = self._query_arrays()
-            origin, shape, table = (self._kernel_index(max_range) if shapes
-                                    else (np.zeros(3), np.ones(2, dtype=np.intp),
-                                          np.zeros((1, 1), dtype=np.intp)))
-            box = np.array(self.box if self.box is not None else (0.0, 0.0, 0.0, 0.0), float)
+            origin, shape, table = self._kernel_index_or_none(max_range, shapes)
             best = compiled.raycast(np.ascontiguousarray(origins, dtype=np.float64),
-                                    np.ascontiguousarray(directions, dtype=np.float64), box,
+                                    np.ascontiguousarray(directions, dtype=np.float64),
+                                    self._box_array(),
                                     self.box is not None, qa, qb, qr, table, origin, shape,
                                     shapes)
             if self.grid is not None:
