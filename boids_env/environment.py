@@ -20,7 +20,7 @@ from boids_env import kernels, metrics, proxemics
 from boids_env.config import EnvConfig
 from boids_env.fused import Fused
 from boids_env.observations import Crowd, Observer
-from boids_env.vectors import as_velocities, clip_speed
+from boids_env.vectors import as_velocities, clip_speed_reference
 from boids_env.world import scenario
 from boids_env.world.leader import ExternalLeader, Leader, make_leader, preview_path, redraw_clear
 from boids_env.world.person import make_person
@@ -418,12 +418,9 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         if arr.dtype.kind not in "iuf" or arr.shape != shape:
             raise ValueError(f"actions must be a real array of shape {shape} (vx, vy per "
                              f"follower, m/s), got dtype {arr.dtype} and shape {arr.shape}")
-        arr = arr.astype(np.float64)
-        if not np.isfinite(arr).all():
-            bad = [a for a, row in zip(self.agents, arr, strict=True)
-                   if not np.isfinite(row).all()]
-            raise ValueError(f"actions must be finite; NaN or inf from {bad}")
-        return self._advance(arr)
+        # a NaN or inf is refused by the speed limit, before anything moves
+        # (:meth:`_before_physics`)
+        return self._advance(arr.astype(np.float64))
 
     def _advance(self, actions: npt.NDArray[np.float64]) -> ArrayStep:
         """One control step from checked actions (F, 2) in the observation frame: their speed
@@ -468,11 +465,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         cfg = self.episode_config
         native = cfg.observation.action == "unicycle"
         if native:  # (v, ω) within the robot's limits; the leader's driver turns its own
+            self._finite(actions)
             wc = cfg.world
             high = np.array([wc.max_speed, wc.max_turn_rate], dtype=np.float64)
             commands = np.clip(actions, -high, high)  # float64 limits, not the Box's float32
         else:
-            commands = clip_speed(self._observer.to_world(actions), cfg.world.max_speed)
+            commands = self._speed_limited(actions, cfg.world.max_speed)
         sc = cfg.scenario
         if sc.startup_hold and scenario.holding(world.time, sc.startup_time):
             commands = np.zeros_like(commands)
@@ -520,7 +518,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                        observations: npt.NDArray[np.float32]) -> ArrayStep:
         """The step's result from its reward terms (9, F) and next observations: the
         episode's end (the leader's finish and tail, the step limit), rendering."""
-        return ArrayStep(observations, terms.sum(axis=0), terms, self._end_step())
+        # add.reduce: terms.sum's own call without its Python wrapper (the same bits)
+        return ArrayStep(observations, np.add.reduce(terms, axis=0), terms, self._end_step())
 
     def _end_step(self) -> bool:
         """Whether the episode ended with this step (the leader's finish and tail, the step
@@ -666,15 +665,33 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             raise KeyError(f"actions must hold exactly the live agents; unknown: {unknown}, "
                            f"missing: {missing}")
         values = list(map(actions.__getitem__, agents))
-        arr = _real_pairs(values)  # the common case: what policies return
-        if arr is None:
+        arr = _real_pairs(values)  # the common case: what policies return (a NaN or inf
+        if arr is None:            # is refused by the speed limit, before anything moves)
             return np.stack([as_velocities(v, f"action of {a}", (2,))
                              for a, v in zip(self.agents, values, strict=True)])
-        if not np.isfinite(arr).all():
-            bad = [a for a, row in zip(self.agents, arr, strict=True)
+        return arr
+
+    def _finite(self, actions: npt.NDArray[np.float64]) -> None:
+        """Raises the clear error for a NaN or inf in the checked actions (F, 2), naming
+        the followers that sent one."""
+        if not np.isfinite(actions).all():
+            bad = [a for a, row in zip(self.agents, actions, strict=True)
                    if not np.isfinite(row).all()]
             raise ValueError(f"actions must be finite; NaN or inf from {bad}")
-        return arr
+
+    def _speed_limited(self, actions: npt.NDArray[np.float64], max_speed: float
+                       ) -> npt.NDArray[np.float64]:
+        """The world-frame commands of the actions (F, 2), their speed limited, after
+        refusing a NaN or inf (:meth:`_finite`): the speed limit's kernel sees every
+        speed, so the finite commands of a step cost no check of their own."""
+        commands = self._observer.to_world(actions)
+        compiled = kernels.compiled()
+        if compiled is not None and commands.flags.c_contiguous:
+            status, out = compiled.clip_speed(commands, float(max_speed))
+            if status != 2:  # 2: a speed that is not finite, from a NaN, inf or overflow
+                return out
+        self._finite(actions)
+        return clip_speed_reference(commands, max_speed)
 
     def _observe(self) -> npt.NDArray[np.float32]:
         world = self._world
@@ -824,18 +841,24 @@ _DTYPE = attrgetter("dtype")
 
 
 def _real_pairs(values: list[Any]) -> npt.NDArray[np.float64] | None:
-    """``values`` stacked (F, 2) as float64 if every one is a plain ndarray of shape (2,)
-    and an integer or float dtype (checked by type and dtype sets, not per value in
-    Python), else None (the caller parses each value with its error messages)."""
-    if set(map(type, values)) != {np.ndarray}:
+    """``values`` stacked (F, 2) as float64 if every one is an array of shape (2,) with an
+    integer or float dtype, else None (the caller parses each value with its error
+    messages). The checks are three C calls, not a Python test per value: the set of
+    dtypes (a value without one, a list or a float, is not an array), their kinds, and the
+    stacked shape, which is (F, 2) only if every value has shape (2,) (a numpy scalar, of
+    shape (), or a value of any other shape gives another, or no stack at all)."""
+    try:
+        dtypes = set(map(_DTYPE, values))
+        real = (dtypes.pop().kind in "iuf" if len(dtypes) == 1  # the common case
+                else all(dtype.kind in "iuf" for dtype in dtypes))
+    except (AttributeError, TypeError):  # no dtype, or not numpy's (a tensor's)
         return None
-    if any(dtype.kind not in "iuf" for dtype in set(map(_DTYPE, values))):
+    if not real:
         return None
     try:
         arr = np.array(values, dtype=np.float64)
-    except ValueError:  # shapes that differ
+    except (ValueError, TypeError):  # shapes that differ; an object that cannot convert
         return None
-    # every value is an ndarray, so (F, 2) means every one has shape (2,)
     return arr if arr.shape == (len(values), 2) else None
 
 

@@ -95,17 +95,17 @@ class Fused:
         (9, rows), and adds to their counts, in one compiled call; the leader frames turn
         first, and relative actions keep the leader velocity each follower observed."""
         chosen = self.chosen
-        worlds = [env._world for env in chosen]
         for j in self.rotating:
             observer = chosen[j]._observer
-            observer.follow(worlds[j].velocities)
+            observer.follow(chosen[j]._world.velocities)
             self.params[j, 10:14] = rotation(observer.heading).ravel()
-        if len(worlds) == 1:
-            world = worlds[0]
+        if len(chosen) == 1:
+            world = chosen[0]._world
             positions, velocities, commanded = world.positions, world.velocities, \
                 world.commanded
             angle = np.arctan2(commanded[:, 1], commanded[:, 0])
         else:
+            worlds = [env._world for env in chosen]
             commands = [w.commanded for w in worlds]
             positions = np.concatenate([w.positions for w in worlds])
             velocities = np.concatenate([w.velocities for w in worlds])

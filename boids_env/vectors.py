@@ -26,6 +26,12 @@ def clip_speed(v: FloatArray, limit: float) -> FloatArray:
         status, out = compiled.clip_speed(v, float(limit))  # the same bits in one loop
         if status != 2:  # 2: a speed overflows, handled below
             return out
+    return clip_speed_reference(v, limit)
+
+
+def clip_speed_reference(v: FloatArray, limit: float) -> FloatArray:
+    """:func:`clip_speed` in numpy (float64 rows ``v``), which the kernel leaves the rows
+    whose speed overflows to."""
     speed = np.sqrt(np.einsum("...d,...d->...", v, v))  # no overflow warning for huge rows
     if not (speed > limit).any():
         return v

@@ -1,5 +1,6 @@
 """Bad input raises a clear error naming the problem, and never corrupts the env's state."""
 
+import contextlib
 import re
 import warnings
 
@@ -268,3 +269,48 @@ def test_a_flat_field_name_in_two_config_sections_is_refused():
     with pytest.raises(TypeError, match="'dt' is in both 'world' and 'other'"):
         field_owners({"world": WorldConfig, "other": Other})
     assert FIELD_OWNER["dt"] == "world" and FIELD_OWNER["horizon"] == "observation"
+
+
+NON_FINITE_CASES = [
+    {},
+    {"frame": "leader", "relative_actions": True},  # rotated, then the leader velocity added
+    {"leader": "person", "crowd": 4, "path": "square"},  # the crowd walks before physics
+    {"safety_filter": True, "scene": "pillars"},
+    {"realism": "ros"},
+    {"robot": "gritsbot", "action": "unicycle"},  # native (v, ω): no speed limit's kernel
+]
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["kernels", "numpy"])
+@pytest.mark.parametrize("fields", NON_FINITE_CASES, ids=lambda f: ",".join(f) or "default")
+def test_a_nan_or_inf_action_is_refused_before_anything_moves(fields, compiled):
+    """The finiteness check rides on the speed limit (its kernel sees every speed): a NaN or
+    inf is still refused with the followers named, through both APIs, and the env steps on
+    as if the bad call never happened (the crowd, the leader and the random streams too)."""
+    from boids_env import kernels
+
+    assert kernels.load() is not None
+    context = contextlib.nullcontext() if compiled else kernels.reference()
+    with context:
+        e, twin = (parallel_env(robots=5, max_cycles=50, **fields) for _ in range(2))
+        for env in (e, twin):
+            env.reset(seed=3)
+            for _ in range(3):
+                env.step_arrays(np.full((4, 2), 0.1))
+        bad = np.full((4, 2), 0.1)
+        bad[1, 0], bad[3, 1] = np.nan, -np.inf
+        with pytest.raises(ValueError, match=r"finite; NaN or inf from \['follower_2', "
+                                             r"'follower_4'\]"):
+            e.step_arrays(bad)
+        with pytest.raises(ValueError, match=r"finite; NaN or inf from \['follower_2', "
+                                             r"'follower_4'\]"):
+            e.step(dict(zip(e.agents, bad)))
+        huge = np.full((4, 2), 1e308)  # finite: its speed overflows, and is limited
+        for env in (e, twin):
+            a = env.step_arrays(huge)
+        b = twin.step_arrays(np.full((4, 2), 0.1))
+        c = e.step_arrays(np.full((4, 2), 0.1))
+    assert np.all(np.isfinite(a.observations))
+    assert c.observations.tobytes() == b.observations.tobytes()
+    assert c.rewards.tobytes() == b.rewards.tobytes()
+    assert e.snapshot().positions.tobytes() == twin.snapshot().positions.tobytes()
