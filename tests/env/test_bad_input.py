@@ -304,7 +304,7 @@ def test_a_nan_or_inf_action_is_refused_before_anything_moves(fields, compiled):
             e.step_arrays(bad)
         with pytest.raises(ValueError, match=r"finite; NaN or inf from \['follower_2', "
                                              r"'follower_4'\]"):
-            e.step(dict(zip(e.agents, bad)))
+            e.step(dict(zip(e.agents, bad, strict=True)))
         huge = np.full((4, 2), 1e308)  # finite: its speed overflows, and is limited
         for env in (e, twin):
             a = env.step_arrays(huge)
