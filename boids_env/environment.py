@@ -428,12 +428,14 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         it, so that a policy in another frame gets the same commands bit for bit), the
         physics, the metrics and rewards, the episode's end, the next observations.
 
-        Three parts, which :class:`~boids_env.batch.EnvBatch` also calls (computing the
-        middle of the last part for all its copies at once): :meth:`_before_physics`,
-        :meth:`_physics`, then the reward terms, the observations and :meth:`_after_physics`.
+        Parts which :class:`~boids_env.batch.EnvBatch` also calls (computing the third for
+        all its copies at once): :meth:`_before_physics`, :meth:`_physics`, the reward
+        terms and observations (:meth:`_outcome`), the episode's end (:meth:`_end_step`).
         """
         self._physics(self._before_physics(actions))
-        return self._after_physics(*self._outcome())
+        terms, observations = self._outcome()
+        # add.reduce: terms.sum's own call without its Python wrapper (the same bits)
+        return ArrayStep(observations, np.add.reduce(terms, axis=0), terms, self._end_step())
 
     def _outcome(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float32]]:
         """The step's reward terms (9, F) and next observations after the physics: in one
@@ -472,15 +474,15 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         else:
             commands = self._speed_limited(actions, cfg.world.max_speed)
         sc = cfg.scenario
-        if sc.startup_hold and scenario.holding(world.time, sc.startup_time):
+        time = world.time
+        if sc.startup_hold and scenario.holding(time, sc.startup_time):
             commands = np.zeros_like(commands)
         crowd = None
         if self._people is not None:
-            self._people.advance(world.time)
-            dt = self.episode_config.world.dt
-            crowd = (self._people.pedestrians - world.pedestrian_positions) / dt
+            self._people.advance(time)
+            crowd = (self._people.pedestrians - world.pedestrian_positions) / cfg.world.dt
         full = np.empty((len(commands) + 1, 2))
-        full[0] = leader.command(world.time, world.positions[0])
+        full[0] = leader.command(time, world.positions[0])
         if cfg.safety.safety_filter and not native:
             commands = filter_commands(commands, world.positions, world.velocities, full[0],
                                        cfg.world.robot_radius, cfg.world.max_speed,
@@ -490,8 +492,8 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
                                                      else world.pedestrian_positions,
                                                      crowd, cfg.scenario.person_radius,
                                                      cfg.scenario.leader != "robot"))
-        lead = full[0]
-        self._still_steps = 0 if lead[0] != 0.0 or lead[1] != 0.0 else self._still_steps + 1
+        x, y = full[0].tolist()  # the stored command (two floats, one call)
+        self._still_steps = 0 if x != 0.0 or y != 0.0 else self._still_steps + 1
         if native:
             full[0] = world.model.native(full[:1], world.heading_vectors[:1])[0]
         full[1:] = commands
@@ -513,13 +515,6 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             executed = self._realism.executed(full, world.positions, world.time)
             world.step(full, executed, crowd)
             self._history.append((full, executed, crowd, None))
-
-    def _after_physics(self, terms: npt.NDArray[np.float64],
-                       observations: npt.NDArray[np.float32]) -> ArrayStep:
-        """The step's result from its reward terms (9, F) and next observations: the
-        episode's end (the leader's finish and tail, the step limit), rendering."""
-        # add.reduce: terms.sum's own call without its Python wrapper (the same bits)
-        return ArrayStep(observations, np.add.reduce(terms, axis=0), terms, self._end_step())
 
     def _end_step(self) -> bool:
         """Whether the episode ended with this step (the leader's finish and tail, the step
