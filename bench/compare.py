@@ -7,6 +7,15 @@ with the threads and processes each commit's defaults resolve to), and after eac
 pair a third process, under this interpreter, times the bench's bare physics of 13 robots
 (``physics_loop``): the issue's training/physics quotient, taken round by round.
 
+With ``--lockstep`` the two interpreters run side by side instead, one process each, taking
+turns block by block: ``--block-steps`` steps of the bare physics, the dict API or the array
+API at a time, the order reversed every block, ``--blocks`` blocks of each, each loop going on
+where its last block stopped (a new episode off the clock every ``--steps`` steps). Only one
+of them runs at any moment, and the two codes' blocks of a kind are a few milliseconds
+apart, so a change of a few per cent shows through a machine whose speed drifts by tens
+of per cent between processes (the medians of the blocks' CPU-time quotients, new over old
+and each API over its own process's physics).
+
 ``OLD_PYTHON`` is the interpreter of a venv that has another commit of boids-env installed
 (e.g. ``git worktree add ../old COMMIT`` and ``pip install -e ../old`` into a venv of its
 own). Each round runs one measurement process under the old interpreter, then one under this
@@ -22,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import statistics
 import subprocess
 import sys
@@ -80,6 +90,138 @@ robots, steps = int(sys.argv[1]), int(sys.argv[2])
 rate = timed(physics_loop(robots, steps), 5)["median"]
 print("RESULT " + json.dumps({"physics agent-steps/s": rate * robots}))
 """
+
+
+LOCKSTEP = """
+import gc, sys, time
+import numpy as np
+try:
+    from boids_env import kernels
+    kernels.load()
+except ImportError:  # a commit before the kernels
+    pass
+from boids_env import EnvConfig, parallel_env
+from boids_env.bench.run import arena_for
+from boids_env.policies import ReynoldsPolicy
+from boids_env.world.scenario import initial_positions
+from boids_env.world.space import World
+robots, steps, policy = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+cfg = EnvConfig.from_kwargs(robots=robots, arena_half_size=arena_for(robots))
+start = initial_positions(cfg.scenario, np.random.default_rng(0))
+commands = np.random.default_rng(0).uniform(-0.5, 0.5, (steps, robots, 2))
+
+
+class Physics:
+    def begin(self):
+        self.world, self.k = World(cfg.world, start), 0
+
+    def step(self):
+        self.world.step(commands[self.k])
+
+
+class Env:
+    def __init__(self, api):
+        self.api = api
+        self.env = parallel_env(robots=robots, max_cycles=10**9, path="external",
+                                arena_half_size=arena_for(robots), startup_time=0.0)
+        limit = self.env.config.world.max_speed
+        self.draws = np.random.default_rng(0).uniform(-limit, limit, (steps, robots - 1, 2))
+        self.policy = ReynoldsPolicy() if policy == "reynolds" else None
+
+    def begin(self):
+        env = self.env
+        self.obs = env.reset(seed=0)[0] if self.api == "dict" else env.reset_arrays(seed=0)
+        env.set_leader_command([0.3, 0.0])
+        if self.policy is not None:
+            self.policy.bind(env)
+            self.policy.reset(0)
+        self.k = 0
+
+    def step(self):
+        env, p, k = self.env, self.policy, self.k
+        if self.api == "dict":
+            acts = p.act(self.obs) if p else dict(zip(env.agents, self.draws[k], strict=True))
+            self.obs = env.step(acts)[0]
+        else:
+            acts = p.act_batch(self.obs) if p else self.draws[k]
+            self.obs = env.step_arrays(acts).observations
+
+
+loops = {"physics": Physics(), "dict": Env("dict"), "arrays": Env("arrays")}
+for loop in loops.values():  # a warm-up episode, then a fresh one
+    loop.begin()
+    for loop.k in range(steps):
+        loop.step()
+    loop.begin()
+gc.collect()
+print("READY", flush=True)
+for line in sys.stdin:
+    kind, block = line.split()
+    loop = loops[kind]
+    if loop.k + int(block) > steps:  # a new episode, off the clock
+        loop.begin()
+        gc.collect()
+    cpu = time.process_time()
+    for _ in range(int(block)):
+        loop.step()
+        loop.k += 1
+    print(f"T {time.process_time() - cpu!r}", flush=True)
+"""
+
+
+def compare_lockstep(old_python: str, robots: int = 19, steps: int = 400, blocks: int = 200,
+                     block_steps: int = 25, policy: str = "random",
+                     new_python: str | None = None) -> dict[str, Any]:
+    """The old and the new code in two processes taking turns block by block (the module
+    doc): the medians over blocks of new/old CPU time of each loop, and of each API's
+    physics/API quotient (its env-steps/s over the bare physics') in each process."""
+    pythons = {"old": old_python, "new": new_python or sys.executable}
+    kinds = ("physics", "dict", "arrays")
+    times: dict[tuple[str, str], list[float]] = {(n, k): [] for n in pythons for k in kinds}
+    procs: dict[str, subprocess.Popen[str]] = {}
+    try:
+        for name, python in pythons.items():
+            procs[name] = subprocess.Popen(
+                [python, "-c", LOCKSTEP, str(robots), str(steps), policy],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        for name, proc in procs.items():
+            _expect(proc, name, "READY")
+        order = [(n, k) for k in kinds for n in procs]
+        for b in range(blocks):
+            for name, kind in order if b % 2 == 0 else order[::-1]:
+                proc = procs[name]
+                assert proc.stdin is not None
+                proc.stdin.write(f"{kind} {block_steps}\n")
+                proc.stdin.flush()
+                times[name, kind].append(float(_expect(proc, name, "T")))
+    finally:
+        for proc in procs.values():
+            if proc.stdin is not None:
+                proc.stdin.close()
+            proc.wait(timeout=60)
+    out: dict[str, Any] = {"new_over_old_time": {
+        k: statistics.median(n / o for n, o in zip(times["new", k], times["old", k],
+                                                    strict=True)) for k in kinds}}
+    for name in procs:
+        physics = times[name, "physics"]
+        out[name] = {f"{k}/physics": statistics.median(
+            p / t for p, t in zip(physics, times[name, k], strict=True)) for k in kinds[1:]}
+        out[name]["us per step"] = {k: statistics.median(times[name, k]) / block_steps * 1e6
+                                    for k in kinds}
+    out["setting"] = {"robots": robots, "steps": steps, "blocks": blocks,
+                      "block_steps": block_steps, "policy": policy, "clock": "cpu"}
+    return out
+
+
+def _expect(proc: subprocess.Popen[str], name: str, word: str) -> str:
+    """The rest of the next line of ``proc``'s output, which must start with ``word``."""
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    if not line.startswith(word):
+        proc.kill()
+        raise RuntimeError(f"the {name} process stopped (exit {proc.wait()}) before "
+                           f"answering {word!r}; its output: {line!r}")
+    return line[len(word):].strip()
 
 
 def _run(python: str, script: str, *args: Any) -> dict[str, float]:
@@ -161,11 +303,23 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "recipe, a TOML file, or 'defaults')")
     parser.add_argument("--rollouts", type=int, default=3,
                         help="with --training: rollouts timed per process (3)")
+    parser.add_argument("--lockstep", action="store_true",
+                        help="two processes taking turns block by block (module doc)")
+    parser.add_argument("--blocks", type=int, default=200,
+                        help="with --lockstep: blocks of each loop (200)")
+    parser.add_argument("--block-steps", type=int, default=25,
+                        help="with --lockstep: steps per block (25)")
     args = parser.parse_args(argv)
-    for name in ("robots", "steps", "repeats", "rounds", "rollouts"):
+    if shutil.which(args.old_python) is None:
+        parser.error(f"old_python: no interpreter at {args.old_python!r} (the old commit's "
+                     f"venv's python, an executable file)")
+    for name in ("robots", "steps", "repeats", "rounds", "rollouts", "blocks", "block_steps"):
         if getattr(args, name) < (2 if name == "robots" else 1):
-            parser.error(f"--{name} must be at least {2 if name == 'robots' else 1}, got "
-                         f"{getattr(args, name)}")
+            parser.error(f"--{name.replace('_', '-')} must be at least "
+                         f"{2 if name == 'robots' else 1}, got {getattr(args, name)}")
+    if args.lockstep and args.block_steps > args.steps:
+        parser.error(f"--block-steps must be at most --steps ({args.steps}), got "
+                     f"{args.block_steps}")
     if args.training:
         if args.training != "defaults":
             from boids_env.train.config import resolve_recipe
@@ -174,6 +328,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             except FileNotFoundError as err:
                 parser.error(f"--training: {err}")
         out = compare_training(args.old_python, args.training, args.rounds, args.rollouts)
+    elif args.lockstep:
+        out = compare_lockstep(args.old_python, args.robots, args.steps, args.blocks,
+                               args.block_steps, args.policy)
     else:
         out = compare(args.old_python, args.robots, args.steps, args.repeats, args.policy,
                       args.rounds)

@@ -134,6 +134,47 @@ def test_compare_runs_old_and_new_in_turn_and_takes_ratios_round_by_round():
                                         "arrays wall", "arrays cpu"}
 
 
+@pytest.mark.slow
+def test_compare_lockstep_takes_turns_block_by_block_in_two_processes():
+    import sys
+
+    from boids_env.bench.compare import compare_lockstep
+
+    # 3 blocks of 4 steps in episodes of 8: each loop starts a second episode off the clock
+    out = compare_lockstep(sys.executable, robots=3, steps=8, blocks=3, block_steps=4)
+    assert out["setting"] == {"robots": 3, "steps": 8, "blocks": 3, "block_steps": 4,
+                              "policy": "random", "clock": "cpu"}
+    assert set(out["new_over_old_time"]) == {"physics", "dict", "arrays"}
+    assert all(0 < v < float("inf") for v in out["new_over_old_time"].values())
+    for name in ("old", "new"):
+        assert out[name]["dict/physics"] > 0 and out[name]["arrays/physics"] > 0
+        assert set(out[name]["us per step"]) == {"physics", "dict", "arrays"}
+        assert min(out[name]["us per step"].values()) > 0
+
+
+def test_compare_lockstep_names_a_process_that_stops(tmp_path):
+    from boids_env.bench.compare import compare_lockstep
+
+    broken = tmp_path / "python"
+    broken.write_text("#!/bin/sh\nexit 3\n")
+    broken.chmod(0o755)
+    with pytest.raises(RuntimeError, match=r"the old process stopped \(exit 3\) before "
+                                           r"answering 'READY'"):
+        compare_lockstep(str(broken), robots=3, steps=4, blocks=1, block_steps=2)
+
+
+def test_compare_refuses_a_missing_interpreter_and_bad_blocks(capsys):
+    from boids_env.bench.compare import main
+
+    for argv, message in ((["/no/such/python", "--lockstep"], "no interpreter at"),
+                          (["python", "--lockstep", "--blocks", "0"], "--blocks must be at"),
+                          (["python", "--lockstep", "--block-steps", "301"],
+                           "--block-steps must be at most --steps")):
+        with pytest.raises(SystemExit):
+            main(argv)
+        assert message in capsys.readouterr().err
+
+
 def test_compare_refuses_bad_counts():
     from boids_env.bench.compare import main
 
