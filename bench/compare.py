@@ -106,6 +106,8 @@ from boids_env.policies import ReynoldsPolicy
 from boids_env.world.scenario import initial_positions
 from boids_env.world.space import World
 robots, steps, policy = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+# the set-up of bench.run's physics_loop and env_loop, stepped a block at a time here (their
+# loops run whole episodes, and older commits' versions of them differ)
 cfg = EnvConfig.from_kwargs(robots=robots, arena_half_size=arena_for(robots))
 start = initial_positions(cfg.scenario, np.random.default_rng(0))
 commands = np.random.default_rng(0).uniform(-0.5, 0.5, (steps, robots, 2))
