@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from boids_env import observations as ob
+from boids_env.observations import sensing
 from boids_env import parallel_env
 
 
@@ -31,7 +32,7 @@ def test_kdtree_skips_robots_on_top_of_each_other_like_all_pairs(monkeypatch):
     pos[5] = pos[3]  # two followers at the same point: neither is the other's neighbour
     pos[7] = pos[3]
     a = ob.nearest_neighbours(pos, 0.6, 25)  # more slots than neighbours in reach
-    monkeypatch.setattr(ob, "KD_TREE_MIN_ROBOTS", 2)
+    monkeypatch.setattr(sensing, "KD_TREE_MIN_ROBOTS", 2)
     b = ob.nearest_neighbours(pos, 0.6, 25)
     np.testing.assert_array_equal(a[0], brute_neighbours(pos, 0.6, 25))
     # the same neighbours at the same distances (robots 3, 5, 7 tie: the KD-tree may order
@@ -45,7 +46,7 @@ def test_kdtree_skips_robots_on_top_of_each_other_like_all_pairs(monkeypatch):
 def test_kdtree_and_all_pairs_agree(monkeypatch):
     pos = np.random.default_rng(0).uniform(-3, 3, (60, 2))
     a = ob.nearest_neighbours(pos, 1.0, 10)
-    monkeypatch.setattr(ob, "KD_TREE_MIN_ROBOTS", 2)
+    monkeypatch.setattr(sensing, "KD_TREE_MIN_ROBOTS", 2)
     b = ob.nearest_neighbours(pos, 1.0, 10)
     assert np.array_equal(a[0], b[0])
     assert np.allclose(a[1], b[1])
