@@ -101,13 +101,17 @@ class LayoutParameter:
     """What it counts, for the default :attr:`reason` (``"lidar rays (lidar_rays)"``)."""
     reason: Reason | None = None
     """Why a model trained with another value does not fit (None: ``"trained with {t}
-    {what}; this env has {e}"``)."""
+    {what}; this env has {e}"``, or for a flag ``"trained with(out) {what}; this env has it
+    on (off)"``)."""
 
     def differs(self, trained: int, env: int, config: EnvConfig,
                 trained_for: str | None = None) -> str:
         """The phrase saying that a model's layout has ``trained`` where ``env`` has ``env``."""
         if self.reason is not None:
             return self.reason(trained, env, config, trained_for)
+        if self.flag:
+            return (f"trained {'with' if trained else 'without'} {self.what}; this env has it "
+                    f"{'on' if env else 'off'}")
         return f"trained with {trained} {self.what}; this env has {env}"
 
 

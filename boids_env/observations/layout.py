@@ -150,6 +150,12 @@ class ObservationLayout:
         return tuple((spec.fill, block, slots) for spec, block, slots in self.present
                      if spec.fill is not None)
 
+    @property
+    def study_only(self) -> bool:
+        """Whether every block is one of the study's (filled in one kernel call, no fill of
+        its own): what the fused step (:mod:`boids_env.fused`) computes."""
+        return not self.fills
+
     @classmethod
     def from_blocks(cls, blocks: object) -> ObservationLayout:
         """The layout of a saved block list (``[[name, size], ...]``, as :attr:`blocks`);
