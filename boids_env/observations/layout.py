@@ -17,7 +17,7 @@ import numpy.typing as npt
 from gymnasium import spaces
 
 from boids_env.observations import blocks as table
-from boids_env.observations.blocks import BlockSpec, Ranges
+from boids_env.observations.blocks import BlockSpec, Fill, LayoutParameter, Ranges
 from boids_env.observations.sensing import SLOT_SIZE, WALL_SIZE, FloatArray
 
 if TYPE_CHECKING:
@@ -55,6 +55,9 @@ class ObservationLayout:
     and a valid flag (1; 0 where no free path exists and the first three are the straight
     line's)."""
 
+    _values: tuple[tuple[str, int | bool], ...]
+    """``(name, value)`` of every parameter, in the table's order (what equality compares)."""
+
     own_velocity = slice(0, 2)
     leader_position = slice(2, 4)
     leader_velocity = slice(4, 6)
@@ -76,21 +79,11 @@ class ObservationLayout:
         if unknown:
             raise TypeError(f"ObservationLayout has no parameter {sorted(unknown)[0]!r} "
                             f"(parameters: {', '.join(p.name for p in params)})")
-        items = []
-        for p in params:
-            value = given.get(p.name, False if p.flag else 0)
-            if p.flag and not isinstance(value, bool):
-                raise ValueError(f"ObservationLayout {p.name} must be True or False, got "
-                                 f"{value!r}")
-            if not p.flag and (isinstance(value, bool) or not isinstance(value, int | np.integer)
-                               or value < 0):
-                raise ValueError(f"ObservationLayout {p.name} must be a non-negative integer, "
-                                 f"got {value!r}")
-            object.__setattr__(self, p.name, value)
-            items.append((p.name, value))
-        object.__setattr__(self, "_values", tuple(items))
-
-    _values: tuple[tuple[str, int | bool], ...]
+        items = tuple((p.name, _checked(p, given.get(p.name, False if p.flag else 0)))
+                      for p in params)
+        for name, value in items:
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "_values", items)
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise dataclasses.FrozenInstanceError(f"cannot assign to field {name!r}")
@@ -99,9 +92,9 @@ class ObservationLayout:
         raise dataclasses.FrozenInstanceError(f"cannot delete field {name!r}")
 
     def __eq__(self, other: object) -> bool:
-        if other.__class__ is not self.__class__:
+        if not isinstance(other, ObservationLayout) or type(other) is not type(self):
             return NotImplemented
-        return self._values == other._values  # type: ignore[attr-defined]
+        return self._values == other._values
 
     def __hash__(self) -> int:
         return hash(self._values)
@@ -145,7 +138,7 @@ class ObservationLayout:
         return tuple((spec.name, block.stop - block.start) for spec, block, _ in self.present)
 
     @functools.cached_property
-    def fills(self) -> tuple[tuple[Any, slice, int], ...]:
+    def fills(self) -> tuple[tuple[Fill, slice, int], ...]:
         """``(fill, slice, slots)`` of the blocks filled beyond the study's, in order."""
         return tuple((spec.fill, block, slots) for spec, block, slots in self.present
                      if spec.fill is not None)
@@ -194,13 +187,24 @@ class ObservationLayout:
         raise ValueError(f"this observation layout has no {name!r} block (blocks: "
                          f"{[b for b, _ in self.blocks]})")
 
+    @functools.cached_property
+    def _shapes(self) -> dict[str, tuple[slice, int, int]]:
+        """``(slice, slots, width)`` of every block of the table (an empty slice where this
+        layout leaves it out)."""
+        shapes = {spec.name: (slice(0, 0), 0, spec.width) for spec in table.specs()}
+        shapes.update({spec.name: (block, slots, spec.width)
+                       for spec, block, slots in self.present})
+        return shapes
+
     def slot_view(self, obs: FloatArray, name: str) -> FloatArray:
         """View of block ``name``'s slots of a batch ``(..., size)`` as ``(..., slots,
-        width)`` (no slots where this layout leaves the block out)."""
-        spec = next(s for s in table.specs() if s.name == name)
-        slots = self._slots(spec)
-        block = self.block(name) if slots else slice(0, 0)
-        return obs[..., block].reshape(*obs.shape[:-1], slots, spec.width)
+        width)`` (no slots where this layout leaves the block out); ``ValueError`` for a
+        name the block table does not have."""
+        if name not in self._shapes:
+            raise ValueError(f"no observation block is called {name!r} (blocks: "
+                             f"{[s.name for s in table.specs()]})")
+        block, slots, width = self._shapes[name]
+        return obs[..., block].reshape(*obs.shape[:-1], slots, width)
 
     @property
     def walls(self) -> bool:
@@ -308,6 +312,18 @@ class ObservationLayout:
                 parts["zeroed"].append(cols[:, spec.flag])
         return tuple(np.concatenate([*parts[key], np.empty(0, np.intp)]).astype(np.intp)
                      for key in ("scaled", "flags", "zeroed"))  # type: ignore[return-value]
+
+
+def _checked(parameter: LayoutParameter, value: Any) -> int | bool:
+    """``value`` if it is one of ``parameter``'s, else ``ValueError`` naming the parameter."""
+    if parameter.flag and not isinstance(value, bool):
+        raise ValueError(f"ObservationLayout {parameter.name} must be True or False, got "
+                         f"{value!r}")
+    if not parameter.flag and (isinstance(value, bool) or not isinstance(value, int | np.integer)
+                               or value < 0):
+        raise ValueError(f"ObservationLayout {parameter.name} must be a non-negative integer, "
+                         f"got {value!r}")
+    return value
 
 
 def _rebuilt(values: dict[str, int | bool]) -> ObservationLayout:

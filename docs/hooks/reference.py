@@ -332,7 +332,9 @@ def observations_page() -> str:
              "positions ±`horizon`, the leader's relative position ± the scene's span "
              "(2·`arena_half_size` in the arena), static slots ±`static_range`, pedestrian "
              "slots ±`pedestrian_range`, rays up to `lidar_range` (see the "
-             "[configuration reference](config.md#observationconfig)).\n\n"]
+             "[configuration reference](config.md#observationconfig)). A new block is one "
+             "more `BlockSpec` at the end of the table in `boids_env/observations/blocks.py` "
+             "(`docs/snippets/new_block.py` is a tested example).\n\n"]
     # the package docstring's paragraphs after its first (the summary)
     parts += [prose(p) + "\n\n" for p in observations.__doc__.split("\n\n")[1:]
               if not p.startswith("The modules:")]
