@@ -13,7 +13,7 @@ import numpy.typing as npt
 
 from boids_env.config import FIELD_OWNER, EnvConfig, ObservationConfig
 from boids_env.environment import BoidsEnv
-from boids_env.observations import ObservationLayout
+from boids_env.observations import ObservationLayout, interface_fields
 from boids_env.policies.base import Policy
 from boids_env.policies.cards import ModelCardWarning, explain_layout, layout_reasons
 from boids_env.recording import Recorder, Recording
@@ -44,12 +44,10 @@ def env_fields_for(policy: Policy, fields: dict[str, Any] | None = None) -> dict
     return out
 
 
-TRAINED_INTERFACE = ("dt", "frame", "relative_actions", "action", "neighbours",
-                     "velocity_bound", "sense_walls", "static_slots", "static_range",
-                     "lidar_rays", "lidar_range", "pedestrian_slots", "pedestrian_range",
-                     "route_sensing", "route_cell", "route_leader")
+TRAINED_INTERFACE = ("dt", "frame", "relative_actions", "action", *interface_fields())
 """Env fields that fix what a learned policy's observations and actions mean (their frame,
-scale, slots and ranges, and the control period its actions were learned at). A model acts
+the control period its actions were learned at, then each observation block's scale, slots
+and ranges: its spec's ``fields``, :mod:`boids_env.observations.blocks`). A model acts
 only in an env that has its training's values of these: its ``env_fields``, the defaults
 for the rest. The other fields are the world's conditions (speeds, scenes, noise, the safety
 filter): a case may change them (:func:`world_changes` records it)."""

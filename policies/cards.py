@@ -448,30 +448,13 @@ def explain_layout(trained: ObservationLayout, env: ObservationLayout, config: E
 
 def layout_reasons(trained: ObservationLayout, env: ObservationLayout, config: EnvConfig,
                    card: ModelCard | None = None) -> list[str]:
-    """One phrase per block of ``trained`` that ``env`` lays out otherwise (headings and the
-    robot, pedestrian slots and the crowd, route sensing, neighbour and static slots,
-    lidar)."""
-    why = []
-    if trained.headings != env.headings:
-        made = (f"{', '.join(card.robots)} ({card.drive})" if card is not None
-                else "holonomic robots" if not trained.headings else "robots with headings")
-        robot = f"{config.world.robot} ({config.world.drive})"
-        why.append(f"trained for {made} without headings; this env's {robot} has headings"
-                   if env.headings else f"trained for {made} with headings; this env's "
-                   f"{robot} has none")
-    if trained.pedestrians != env.pedestrians:
-        why.append(("trained without pedestrian slots" if not trained.pedestrians else
-                    f"trained with {trained.pedestrians} pedestrian slots")
-                   + f"; this env has {env.pedestrians} (crowd={config.scenario.crowd})")
-    if trained.route != env.route:
-        why.append("trained without route sensing; this env has route_sensing on"
-                   if env.route else "trained with route sensing; this env has "
-                   "route_sensing off (set route_sensing=true)")
-    for name, what in (("neighbours", "neighbour slots"), ("static", "static slots "
-                                                           "(sense_walls, static_slots)"),
-                       ("lidar", "lidar rays (lidar_rays)")):
-        if getattr(trained, name) != getattr(env, name):
-            why.append(f"trained with {getattr(trained, name)} {what}; this env has "
-                       f"{getattr(env, name)}")
-    return why
+    """One phrase per layout parameter of ``trained`` that ``env`` has otherwise (neighbour,
+    static and pedestrian slots, lidar rays, headings and the robot, route sensing), in the
+    block table's order (:func:`boids_env.observations.parameters`); ``card`` names the
+    robots the model was trained for."""
+    from boids_env.observations import parameters
+
+    made = f"{', '.join(card.robots)} ({card.drive})" if card is not None else None
+    return [p.differs(int(trained.value(p.name)), int(env.value(p.name)), config, made)
+            for p in parameters() if trained.value(p.name) != env.value(p.name)]
 

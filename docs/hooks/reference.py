@@ -283,32 +283,6 @@ def _slug(command: str) -> str:
 
 
 # --------------------------------------------------------------------------- observations
-BLOCK_MEANINGS = {
-    "own_velocity": "the follower's measured velocity (vx, vy), m/s",
-    "leader_position": "the leader's position relative to the follower (x, y), m",
-    "leader_velocity": "the leader's measured velocity (vx, vy), m/s",
-    "neighbours": "K slots, nearest first: relative position (2, m), velocity (2, m/s), "
-                  "valid flag (1); an empty slot is all zero",
-    "static": "static-geometry slots: offset to the nearest point of walls or obstacles "
-              "(2, m), valid flag (1)",
-    "lidar": "range-sensor rays evenly spaced in the observation's frame: distance (m) to "
-             "the first wall, obstacle or robot, the range where nothing is hit",
-    "pedestrians": "pedestrian slots, nearest first, as neighbour slots: relative position "
-                   "(2, m), velocity (2, m/s), valid flag (1)",
-    "own_heading": "the follower's heading as a unit vector (cos, sin)",
-    "leader_heading": "the leader's heading as a unit vector (cos, sin)",
-    "neighbour_headings": "the heading (cos, sin) of the robot in each neighbour slot; zeros "
-                          "in an empty slot",
-    "route": "route sensing: unit direction (2) along the shortest free path to the leader, "
-             "the path's length (1, m), valid flag (1; 0: no free path, the straight line's "
-             "values); see the buildings how-to",
-}
-"""What each block of :data:`boids_env.observations.BLOCKS` holds (a test checks that every
-block has one)."""
-
-SLOT_WIDTH = {"neighbours": 5, "static": 3, "pedestrians": 5, "neighbour_headings": 2,
-              "lidar": 1}
-
 OBSERVATION_CASES: tuple[tuple[str, dict[str, Any]], ...] = (
     ("The study's default", {}),
     ("A scene with obstacles (static slots)", {"scene": "pillars"}),
@@ -347,9 +321,10 @@ def observation_layouts() -> list[tuple[str, dict[str, Any], Any, Any]]:
 def observations_page() -> str:
     from boids_env import observations
 
+    specs = observations.specs()
     parts = [GENERATED, "# Observation layout\n\n",
              "Each follower observes one float32 vector made of named blocks, in this order "
-             f"(empty blocks are left out): {', '.join(code(b) for b in observations.BLOCKS)}. "
+             f"(empty blocks are left out): {', '.join(code(s.name) for s in specs)}. "
              "Policies read blocks by name (`ObservationLayout.block(name)`), never by index. "
              "The layouts and bounds below are generated from the env for the default config "
              "and for each opt-in sensor; the bounds are those of the env's observation "
@@ -357,22 +332,23 @@ def observations_page() -> str:
              "positions ±`horizon`, the leader's relative position ± the scene's span "
              "(2·`arena_half_size` in the arena), static slots ±`static_range`, pedestrian "
              "slots ±`pedestrian_range`, rays up to `lidar_range` (see the "
-             "[configuration reference](config.md#observationconfig)).\n\n"]
-    # the module docstring's paragraphs after its reST table (neighbours, frames)
-    parts += [prose(p) + "\n\n" for p in observations.__doc__.split("\n\n")[2:]
-              if "===" not in p]
+             "[configuration reference](config.md#observationconfig)). A new block is one "
+             "more `BlockSpec` at the end of the table in `boids_env/observations/blocks.py` "
+             "(`docs/snippets/new_block.py` is a tested example).\n\n"]
+    # the package docstring's paragraphs after its first (the summary)
+    parts += [prose(p) + "\n\n" for p in observations.__doc__.split("\n\n")[1:]
+              if not p.startswith("The modules:")]
+    by_name = {s.name: s for s in specs}
     for title, kwargs, layout, space in observation_layouts():
         fields = ", ".join(code(f"{k}={v!r}") for k, v in kwargs.items()) or "no fields set"
         parts.append(f"\n## {title}\n\n{fields}: {layout.size} values per follower.\n\n")
         rows = []
         for name, size in layout.blocks:
-            block = layout.block(name)
-            width = SLOT_WIDTH.get(name, size)
-            unit = "ray" if name == "lidar" else "slot"
+            block, spec = layout.block(name), by_name[name]
             rows.append((code(name), f"{block.start}–{block.stop - 1}", str(size),
-                         _bounds(space.low[block], width, unit),
-                         _bounds(space.high[block], width, unit),
-                         cell(BLOCK_MEANINGS[name])))
+                         _bounds(space.low[block], spec.width, spec.unit),
+                         _bounds(space.high[block], spec.width, spec.unit),
+                         cell(spec.doc)))
         parts.append(table(("block", "indices", "size", "low", "high", "meaning"), rows) + "\n")
     return "".join(parts)
 

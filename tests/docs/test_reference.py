@@ -11,7 +11,7 @@ import pytest
 
 from boids_env import checks
 from boids_env.config import EnvConfig, ReynoldsParams, WorldConfig
-from boids_env.observations import BLOCKS
+from boids_env.observations import BLOCKS, specs
 from boids_env.train.cli import build_parser
 from boids_env.train.config import TrainConfig
 from boids_env.world.realism import RealismConfig
@@ -141,10 +141,11 @@ def test_an_option_row_gives_its_value_default_and_help(reference):
 
 # ------------------------------------------------------------------ observations page
 def test_every_observation_block_has_a_meaning_and_appears(reference):
-    assert set(reference.BLOCK_MEANINGS) == set(BLOCKS)
+    assert [spec.name for spec in specs()] == list(BLOCKS)
     page = reference.observations_page()
-    for block in BLOCKS:
-        assert f"| `{block}` |" in page, block
+    for spec in specs():
+        assert spec.doc and f"| `{spec.name}` |" in page, spec.name
+        assert f" | {spec.doc} |" in page, spec.name
 
 
 def test_the_default_layout_is_the_studys(reference):

@@ -5,6 +5,7 @@ import pytest
 
 from boids_env import observations as ob
 from boids_env import parallel_env
+from boids_env.observations import sensing
 
 
 def brute_neighbours(pos, horizon, k):
@@ -31,7 +32,7 @@ def test_kdtree_skips_robots_on_top_of_each_other_like_all_pairs(monkeypatch):
     pos[5] = pos[3]  # two followers at the same point: neither is the other's neighbour
     pos[7] = pos[3]
     a = ob.nearest_neighbours(pos, 0.6, 25)  # more slots than neighbours in reach
-    monkeypatch.setattr(ob, "KD_TREE_MIN_ROBOTS", 2)
+    monkeypatch.setattr(sensing, "KD_TREE_MIN_ROBOTS", 2)
     b = ob.nearest_neighbours(pos, 0.6, 25)
     np.testing.assert_array_equal(a[0], brute_neighbours(pos, 0.6, 25))
     # the same neighbours at the same distances (robots 3, 5, 7 tie: the KD-tree may order
@@ -45,7 +46,7 @@ def test_kdtree_skips_robots_on_top_of_each_other_like_all_pairs(monkeypatch):
 def test_kdtree_and_all_pairs_agree(monkeypatch):
     pos = np.random.default_rng(0).uniform(-3, 3, (60, 2))
     a = ob.nearest_neighbours(pos, 1.0, 10)
-    monkeypatch.setattr(ob, "KD_TREE_MIN_ROBOTS", 2)
+    monkeypatch.setattr(sensing, "KD_TREE_MIN_ROBOTS", 2)
     b = ob.nearest_neighbours(pos, 1.0, 10)
     assert np.array_equal(a[0], b[0])
     assert np.allclose(a[1], b[1])
@@ -144,3 +145,74 @@ def test_sensing_noise_spares_flags_and_empty_slots(fields):
         empty = layout.slots(obs)[..., 4] == 0.0
         assert (layout.neighbour_headings(obs)[empty] == 0.0).all()
     env.close()
+
+
+# ------------------------------------------------------------------ the block table
+def test_the_study_blocks_lead_the_table_at_their_fixed_indices():
+    layout = ob.ObservationLayout(4, 2, 3, pedestrians=1, headings=True, route=True)
+    assert [s.name for s in ob.specs()][:4] == ["own_velocity", "leader_position",
+                                                "leader_velocity", "neighbours"]
+    assert layout.block("own_velocity") == layout.own_velocity
+    assert layout.block("leader_position") == layout.leader_position
+    assert layout.block("leader_velocity") == layout.leader_velocity
+    assert layout.block("neighbours").start == layout.neighbours_start
+    assert [s.name for s in ob.specs()] == list(ob.BLOCKS)
+
+
+def test_every_spec_bounds_and_masks_its_own_columns():
+    ranges = ob.Ranges(10.0, 1.0, 3.0, 2.0, 4.0, 5.0)
+    names = [s.name for s in ob.specs()]
+    for spec in ob.specs():
+        low, high = spec.bounds(ranges)
+        assert len(low) == len(high) == spec.width, spec.name
+        assert all(lo <= hi for lo, hi in zip(low, high, strict=True)), spec.name
+        assert set(spec.masked) <= set(range(spec.width)) and spec.doc, spec.name
+        assert spec.flag is None or 0 <= spec.flag < spec.width, spec.name
+        owner = spec.masked_by or spec.name
+        assert not spec.masked or ob.specs()[names.index(owner)].flag is not None, spec.name
+
+
+def test_the_shipped_models_saved_layouts_read_back_block_for_block():
+    from pathlib import Path
+
+    from boids_env.policies.sb3_policy import read_meta
+
+    zips = sorted((Path(__file__).resolve().parents[2] / "policies" / "models").glob("*.zip"))
+    assert zips
+    for path in zips:
+        meta = read_meta(path)
+        for saved in (meta.get("observation_layout"), (meta.get("card") or {}).get("observation")):
+            if saved is not None:
+                layout = ob.ObservationLayout.from_blocks(saved)
+                assert [list(b) for b in layout.blocks] == [list(b) for b in saved], path.name
+
+
+def test_a_layout_is_a_frozen_value_named_by_its_parameters():
+    import pickle
+
+    layout = ob.ObservationLayout(6, 1, pedestrians=2, route=True)
+    assert layout == ob.ObservationLayout(neighbours=6, static=1, lidar=0, pedestrians=2,
+                                          headings=False, route=True)
+    assert hash(layout) == hash(pickle.loads(pickle.dumps(layout)))
+    assert pickle.loads(pickle.dumps(layout)) == layout and layout != ob.ObservationLayout(6)
+    assert layout.parameters == {"neighbours": 6, "static": 1, "lidar": 0, "pedestrians": 2,
+                                 "headings": False, "route": True}
+    assert repr(layout).startswith("ObservationLayout(neighbours=6, static=1, lidar=0,")
+    with pytest.raises(AttributeError):
+        layout.neighbours = 3
+    with pytest.raises(TypeError, match="no parameter 'sonar'"):
+        ob.ObservationLayout(6, sonar=2)
+    with pytest.raises(ValueError, match="static must be a non-negative integer, got -1"):
+        ob.ObservationLayout(6, -1)
+    with pytest.raises(ValueError, match="route must be True or False, got 1"):
+        ob.ObservationLayout(6, route=1)
+    with pytest.raises(ValueError, match="not an observation layout"):
+        ob.ObservationLayout.from_blocks([["own_velocity", 2], ["route", 4]])
+
+
+def test_study_only_is_the_layout_without_a_block_of_its_own_fill():
+    for fields in ({}, {"lidar": 2}, {"static": 1}, {"pedestrians": 1}, {"headings": True},
+                   {"route": True}, {"neighbours": 0}):
+        layout = ob.ObservationLayout(**{"neighbours": 5, **fields})
+        assert layout.study_only == (not (layout.static or layout.lidar or layout.pedestrians
+                                          or layout.headings or layout.route)), fields

@@ -142,13 +142,13 @@ def test_the_pedestrian_slots_hold_the_nearest_pedestrians():
 
 
 def test_the_lidar_sees_pedestrians_and_the_person_as_wide_discs():
-    from boids_env.observations import _lidar_block
+    from boids_env.observations.sensing import lidar_block
 
     scene = load_scene("arena")
     positions = np.array([(2.0, 0.0), (0.0, 0.0)])  # the person 2 m east of the follower
     crowd = Crowd(np.array([(0.0, 1.0)]), np.zeros((1, 2)))  # a pedestrian 1 m north
     sensors = Sensors(scene, lidar_range=3.0, leader_radius=0.22, pedestrian_radius=0.25)
-    ranges = _lidar_block(positions, 4, sensors, None, crowd)[0]
+    ranges = lidar_block(positions, 4, sensors, None, crowd)[0]
     assert ranges[0] == pytest.approx(2.0 - 0.22) and ranges[1] == pytest.approx(1.0 - 0.25)
     assert ranges[2] == ranges[3] == 3.0
 
