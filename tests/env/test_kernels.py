@@ -390,8 +390,8 @@ def test_frame_rotation_runs_compiled_with_the_numpy_bits(monkeypatch):
     from boids_env.vectors import times_matrix
 
     calls = []
-    rotated = _compiled._rotated
-    monkeypatch.setattr(_compiled, "_rotated", lambda v, m: calls.append(1) or rotated(v, m))
+    rotated = _compiled.rotated
+    monkeypatch.setattr(_compiled, "rotated", lambda v, m: calls.append(1) or rotated(v, m))
     rng = np.random.default_rng(6)
     for shape in [(13, 2), (12, 1, 2), (2,), (12, 4, 2), (0, 2)]:
         v = rng.normal(size=shape) * 10.0 ** rng.integers(-300, 300, size=shape)
@@ -635,8 +635,7 @@ def test_actor_kernel_matches_the_numpy_actor_on_any_input():
 def test_exact_product_and_tanh_kernels_give_the_numpy_bits_inside_the_actor():
     """The hidden layers' float64 values themselves (an action's float32 rounding would hide
     a last-bit difference there)."""
-    from boids_env import _compiled
-    from boids_env.policies import exact
+    from boids_env.policies import _compiled, exact
 
     rng = np.random.default_rng(9)
     for inputs, outputs, rows in ((99, 128, 12), (128, 128, 61), (7, 2, 1), (30, 64, 0)):
