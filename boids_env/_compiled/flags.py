@@ -38,7 +38,7 @@ def safety_gap_terms(positions, near_static, safety_scale, safety_distance,
     ``metrics.safety_flags`` from :func:`nearest_other`'s distances and ``near_static``) and
     cohesion-gap row (``terms[6]``: ``gap_scale × max(d − threshold, 0)``, ``d`` the straight
     distance to the leader as ``np.linalg.norm`` computes it: ``sqrt(dx·dx + dy·dy)``), as
-    ``BoidsEnv._safety_terms`` and ``_gap_term`` compute them (a flag as 1.0 or 0.0 times its
+    ``Rewards.safety_terms`` and ``gap_term`` compute them (a flag as 1.0 or 0.0 times its
     scale: an unflagged term is ``scale × 0.0``, −0.0 for a negative scale)."""
     f = positions.shape[0] - 1
     if safety_on:
