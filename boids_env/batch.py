@@ -9,13 +9,14 @@ batch are checked once, in one call, instead of once per copy.
 Each copy runs its step's first part (:meth:`BoidsEnv._before_physics`: speed limit, leader
 command, safety filter) and its physics in turn; then, with the compiled kernels loaded
 (:mod:`boids_env.kernels`), the observations, violation flags and reward terms of every
-*fused* copy come from one compiled call (``_compiled.batch_after``: the same kernels one env
-runs, copy by copy, in one loop). A copy is fused when its step needs nothing else
-(:func:`fusable`): holonomic robots below ``KD_TREE_MIN_ROBOTS``, the study's blocks only
-(any number of neighbour slots; world or leader frame; relative actions or not), no sensing
-noise, realism or crowd, alignment on the commands and none of the opt-in reward terms. Any
-other copy computes them with its own code (:meth:`BoidsEnv._terms`,
-:meth:`BoidsEnv._observe`), in the same call.
+*fused* copy come from one compiled call (``batch_after``: the same kernels one env runs,
+copy by copy, in one loop). A copy is fused when its step needs nothing else
+(:func:`~boids_env.fused.fusable`): holonomic robots below ``KD_TREE_MIN_ROBOTS``, the
+study's blocks only (any number of neighbour slots; world or leader frame; relative actions
+or not), no sensing noise, realism or crowd, alignment on the commands and none of the
+opt-in reward terms. Any other copy computes them with its own code
+(:meth:`Rewards.terms <boids_env.rewards.Rewards.terms>`, :meth:`BoidsEnv._observe`), in the
+same call.
 """
 
 from __future__ import annotations
@@ -28,8 +29,9 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env import kernels
-from boids_env.environment import REWARD_INFO_KEYS, BoidsEnv
+from boids_env.environment import BoidsEnv
 from boids_env.fused import Fused
+from boids_env.rewards import REWARD_INFO_KEYS
 
 
 @dataclass(frozen=True)
@@ -118,7 +120,7 @@ class EnvBatch:
             raise ValueError(f"actions must be finite; NaN or inf in copy {copy}, "
                              f"follower row {row - self.bounds[copy]}")
         for i, env in enumerate(self.envs):
-            if env._world is None or not env.agents:
+            if env.episode is None or not env.agents:
                 raise RuntimeError(f"copy {i} has no live episode (reset it before stepping)")
         for env, start, stop in zip(self.envs, self.bounds, self.bounds[1:], strict=False):
             env._physics(env._before_physics(arr[start:stop]))

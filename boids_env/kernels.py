@@ -3,13 +3,14 @@
 A step of 19 robots is about a hundred numpy calls on 18-row arrays, each costing about a
 microsecond of call overhead whatever it computes. The neighbour search, the observations'
 study blocks, the violation flags with their reward terms, each follower's nearest robot for
-the safety flags and the speed limit each run as one numba loop instead
-(:mod:`boids_env._compiled`), and so do the scene's queries (nearest wall points, wall
-flags, sight lines, clearance, ray casts), the safety filter, route sensing's sight lines,
-a learned actor's elementwise work, many robots' neighbours on a grid (the KD-tree's bits),
-the Reynolds policy's rule forces and a unicycle's turn every physics substep; each rounds
-exactly as the numpy code it replaces:
-trajectories, rewards and digests stay the same bits (``tests/env/test_kernels.py`` compares
+the safety flags and the speed limit each run as one numba loop instead (the package
+:mod:`boids_env._compiled`), and so do the scene's queries (nearest wall points, wall flags,
+sight lines, clearance, ray casts), the safety filter, route sensing's sight lines, many
+robots' neighbours on a grid (the KD-tree's bits) and a unicycle's turn every physics
+substep; the policies' kernels (a learned actor's elementwise work, the Reynolds rule forces)
+live with the policies (:mod:`boids_env.policies.kernels`). Each rounds exactly as the numpy
+code it replaces: trajectories, rewards and digests stay the same bits. :data:`KERNELS` pairs
+every kernel with that code, and ``tests/env/test_kernels.py`` walks the table (and compares
 whole episodes of both paths).
 
 The numpy functions stay the reference and the fallback: without numba, with
@@ -26,10 +27,12 @@ nowhere but in the speed. ``BOIDS_KERNELS=1`` (or :func:`load`) loads them at on
 from __future__ import annotations
 
 import contextlib
+import importlib
 import os
 import warnings
 from collections.abc import Iterator
 from types import ModuleType
+from typing import Any, NamedTuple
 
 LOAD_AFTER = 10_000
 """Calls to :func:`compiled` after which a process loads the kernels (a step of the study's
@@ -96,3 +99,83 @@ def reference() -> Iterator[None]:
         yield
     finally:
         _forced_off = before
+
+
+class Twin(NamedTuple):
+    """Where a kernel's numpy twin is: what calls the kernel and what it replaces."""
+
+    caller: str
+    """``module:qualname`` of the function that runs the kernel when it is loaded and its
+    numpy code otherwise (inside :func:`reference`): called alike, it gives the same bits
+    either way (what the table's test compares)."""
+    references: tuple[str, ...]
+    """``module:qualname`` of the numpy functions the kernel ports (the caller itself where
+    its numpy code is inline)."""
+    why: str = ""
+    """Where ``references`` is empty: why no numpy function is the kernel's twin."""
+
+
+_OBSERVER = "boids_env.observations:Observer.__call__"
+_SCENE = "boids_env.world.scene:Scene."
+KERNELS: dict[str, Twin] = {
+    # boids_env._compiled.study: the study's step
+    "study.nearest": Twin("boids_env.observations:nearest_neighbours",
+                          ("boids_env.observations:nearest_neighbours",)),
+    "study.fill_observations": Twin(_OBSERVER, ("boids_env.observations:_study_blocks",)),
+    "study.violations": Twin("boids_env.rewards:Rewards.terms",
+                             ("boids_env.metrics:flags_for", "boids_env.rewards:Rewards.terms")),
+    "study.rotated": Twin("boids_env.vectors:times_matrix", ("boids_env.vectors:times_matrix",)),
+    "study.batch_after": Twin(
+        "boids_env.batch:EnvBatch.step_arrays", (),
+        "study.nearest, fill_observations and violations of K copies in one call: each copy's "
+        "twin is its own step's numpy code (Rewards.terms, Observer.__call__), which the "
+        "batch runs for every copy inside reference()"),
+    # boids_env._compiled.grid
+    "grid.nearest_grid": Twin("boids_env.observations:nearest_neighbours",
+                              ("boids_env.observations:nearest_neighbours",)),
+    # boids_env._compiled.flags
+    "flags.nearest_other": Twin("boids_env.metrics:safety_flags",
+                                ("boids_env.metrics:safety_flags",)),
+    "flags.safety_gap_terms": Twin("boids_env.rewards:Rewards.terms",
+                                   ("boids_env.rewards:Rewards.safety_terms",
+                                    "boids_env.rewards:Rewards.gap_term")),
+    # boids_env._compiled.motion
+    "motion.clip_speed": Twin("boids_env.vectors:clip_speed",
+                              ("boids_env.vectors:clip_speed_reference",)),
+    "motion.unicycle_substep": Twin("boids_env.world.space:World.step",
+                                    ("boids_env.world.robots:Unicycle._substep",)),
+    # boids_env._compiled.scene
+    "scene.nearest_points": Twin(_SCENE + "nearest_points", (_SCENE + "nearest_points",)),
+    "scene.shape_clearance": Twin(_SCENE + "within", (_SCENE + "_shape_clearance",)),
+    "scene.capsule_clearance": Twin(_SCENE + "clearance", (_SCENE + "clearance",)),
+    "scene.occupied": Twin("boids_env.world.scene:OccupancyGrid.occupied",
+                           ("boids_env.world.scene:OccupancyGrid.occupied",)),
+    "scene.within": Twin(_SCENE + "within", (_SCENE + "within",)),
+    "scene.box_within": Twin(_SCENE + "within", (_SCENE + "_box_within",)),
+    "scene.segments_blocked": Twin(_SCENE + "blocked", (_SCENE + "_capsules_blocked",)),
+    "scene.raycast": Twin(_SCENE + "raycast", (_SCENE + "raycast",)),
+    "scene.ray_circles_nearest": Twin(_OBSERVER, ("boids_env.observations:_ranges_along",)),
+    # boids_env._compiled.sensing
+    "sensing.static_block": Twin(_OBSERVER, ("boids_env.observations:_static_block",)),
+    "sensing.noisy_observations": Twin(_OBSERVER, ("boids_env.observations:Observer._noise",
+                                                   _OBSERVER)),
+    "sensing.in_sight_ahead": Twin("boids_env.world.route:sense_route",
+                                   ("boids_env.world.route:_in_sight_ahead",)),
+    # boids_env._compiled.safety
+    "safety.safety_filter": Twin("boids_env.world.safety:filter_commands",
+                                 ("boids_env.world.safety:barrier_constraints",
+                                  "boids_env.world.safety:nearest_allowed")),
+}
+"""Every kernel of :mod:`boids_env._compiled` (``module.name`` in the package; callers
+reach it as ``compiled.name``) and its numpy twin. The policies' kernels have their table
+beside them (:data:`boids_env.policies.kernels.KERNELS`)."""
+
+
+def resolve(path: str) -> Any:
+    """The object a table names: ``"package.module:Class.attribute"`` imported and looked
+    up (``AttributeError`` or ``ImportError`` where it is gone)."""
+    module, _, qualname = path.partition(":")
+    found: Any = importlib.import_module(module)
+    for part in qualname.split("."):
+        found = getattr(found, part)
+    return found

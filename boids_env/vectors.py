@@ -63,7 +63,7 @@ def times_matrix(v: npt.ArrayLike, matrix: npt.ArrayLike) -> FloatArray:
     compiled = kernels.compiled()
     if (compiled is not None and v.ndim and v.shape[-1] == 2 and m.shape == (2, 2)
             and v.flags.c_contiguous):  # the same products and add in one loop
-        return compiled._rotated(v.reshape(-1, 2), m).reshape(v.shape)
+        return compiled.rotated(v.reshape(-1, 2), m).reshape(v.shape)
     return v[..., 0:1] * m[0] + v[..., 1:2] * m[1]
 
 

@@ -21,8 +21,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env import kernels
-from boids_env.policies import exact
+from boids_env.policies import exact, kernels
 from boids_env.policies.base import BatchPolicy
 
 ACTOR_ENTRY = "boids_actor.npz"

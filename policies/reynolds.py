@@ -61,7 +61,6 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env import kernels
 from boids_env.config import (
     ENV_OWNED,
     PRESETS,
@@ -71,6 +70,7 @@ from boids_env.config import (
     reynolds_params,
 )
 from boids_env.observations import ObservationLayout
+from boids_env.policies import kernels
 from boids_env.policies.base import BatchPolicy
 from boids_env.world.scenario import holding
 
@@ -485,7 +485,7 @@ class ReynoldsPolicy(BatchPolicy):
         slots = layout.slots(obs)
         own = obs[:, layout.own_velocity]
         compiled = kernels.compiled()
-        if compiled is not None:  # the same bits in one loop (boids_env.kernels)
+        if compiled is not None:  # the same bits in one loop (policies.kernels)
             forces = dict(zip(("separation", "cohesion", "alignment"), compiled.reynolds_forces(
                 np.ascontiguousarray(obs), layout.neighbours_start, layout.neighbours,
                 p.horizon, p.desired_separation, p.max_force, p.max_speed), strict=True))

@@ -43,7 +43,7 @@ class BoidsTaskClass(TaskClass):
 
     def max_steps(self, env: EnvBase) -> int:
         # the step limit the env has set at its first reset: max_cycles, or 3x the leader's path
-        return int(env._env._step_limit)
+        return int(env._env.episode.step_limit)
 
     def has_render(self, env: EnvBase) -> bool:
         return False  # frames need render_mode="rgb_array" and the render extra

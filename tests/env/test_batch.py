@@ -193,4 +193,4 @@ def test_counts_stay_each_envs_own_across_copies_pickles_and_batches():
             ref.step_arrays(act)
     want = ref.episode_metrics()
     assert env.episode_metrics() == twin.episode_metrics() == unpickled.episode_metrics() == want
-    assert env._counts is not twin._counts
+    assert env.episode.rewards.counts is not twin.episode.rewards.counts

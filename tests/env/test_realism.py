@@ -63,7 +63,7 @@ def test_command_noise_moves_robots_but_not_the_recorded_commands():
 def test_start_jitter_holds_each_follower_until_its_own_start():
     env = parallel_env(robots=6, start_jitter=1.0, startup_time=0.5)
     snaps = run(env, 20, lambda e, a: [0.3, 0.0])
-    starts = env._realism.start
+    starts = env.episode.realism.start
     assert np.all((starts >= 0.5) & (starts <= 1.5)) and np.ptp(starts) > 0.1
     for k, snap in enumerate(snaps):
         t_before = k * 0.1  # the step began at this time
@@ -75,14 +75,14 @@ def test_start_jitter_holds_each_follower_until_its_own_start():
 def test_latency_and_dropped_commands_execute_older_commands():
     env = parallel_env(robots=6, command_latency=2, startup_time=0.0)
     env.reset(seed=3)
-    lat = env._realism.latency
+    lat = env.episode.realism.latency
     assert set(lat.tolist()) <= {0, 1, 2} and len(set(lat.tolist())) > 1
     history = []
     for k in range(6):
         cmd = np.array([0.05 * (k + 1), 0.0])
         history.append(cmd)
         env.step({a: cmd for a in env.agents})
-        executed = env._history[-1][1][1:]
+        executed = env.episode.history[-1][1][1:]
         for i, delay in enumerate(lat):
             want = history[k - delay] if k - delay >= 0 else np.zeros(2)
             assert np.allclose(executed[i], want), (k, i, delay)
@@ -91,7 +91,7 @@ def test_latency_and_dropped_commands_execute_older_commands():
     repeats = 0
     for k in range(40):
         dropped.step({a: np.array([0.01 * (k + 1), 0.0]) for a in dropped.agents})
-        executed = dropped._history[-1][1][1:, 0]
+        executed = dropped.episode.history[-1][1][1:, 0]
         repeats += int(np.sum(~np.isclose(executed, 0.01 * (k + 1))))
     assert 40 < repeats < 160, repeats  # about half of 200 follower-steps
 

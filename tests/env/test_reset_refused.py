@@ -56,7 +56,7 @@ def test_a_refused_reset_leaves_the_env_as_it_was(kind, seed, monkeypatch):
         twin.step(step)
     with monkeypatch.context() as m:
         if patch is not None:
-            m.setattr("boids_env.environment.World", _bad_world)
+            m.setattr("boids_env.episode_state.World", _bad_world)
         with pytest.raises((ValueError, RuntimeError), match=error):
             env.reset(seed=seed, options=options)
     _assert_same(env, twin, f"{kind}: just after the refused reset")

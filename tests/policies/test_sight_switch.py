@@ -171,7 +171,7 @@ def test_the_env_under_ros_realism_marks_the_sight_of_the_rows_it_delivers():
     for _ in range(300):
         env.step_arrays(rng.uniform(-0.5, 0.5, (12, 2)))
         delivered = env.leader_hidden
-        assert env._realism.stale.hidden is delivered
+        assert env.episode.realism.stale.hidden is delivered
         differed += int((delivered != ~leader_in_sight_now(env)).any())
     assert differed > 0  # some rows went stale with another sight than the current one
 

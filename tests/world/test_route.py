@@ -192,7 +192,7 @@ def test_route_leader_counts_the_gap_along_the_route():
         env = BoidsEnv(scene="doorway", robots=2, reward="safe", reward_gap=10.0,
                        route_sensing=True, route_leader=routed)
         env.reset(seed=0)
-        gaps[routed] = float(env._gap_term(positions)[0, 0])
+        gaps[routed] = float(env.episode.rewards.gap_term(positions)[0, 0])
     assert gaps[False] == 0.0
     dt = 0.1
     assert gaps[True] < -10.0 * dt * 2.0, gaps  # at least 2 m beyond the threshold
@@ -204,9 +204,10 @@ def test_parked_within_leaves_a_far_follower_free_to_come():
     for within in (0.0, 2.25):
         env = BoidsEnv(robots=3, reward="safe", reward_parked=30.0, parked_within=within)
         env.reset(seed=0)
-        env._still_steps = 10**6  # the leader has stood still for long
-        env._leader_distances = lambda positions: np.array([1.0, 5.0])
-        terms[within] = env._parked_term(velocities)[0]
+        rewards = env.episode.rewards
+        rewards.still_steps = 10**6  # the leader has stood still for long
+        rewards.leader_distances = lambda positions: np.array([1.0, 5.0])
+        terms[within] = rewards.parked_term(np.zeros((3, 2)), velocities)[0]
     dt = 0.1
     np.testing.assert_allclose(terms[0.0], [-30.0 * dt * 0.5, -30.0 * dt * 0.5])
     np.testing.assert_allclose(terms[2.25], [-30.0 * dt * 0.5, 0.0])
