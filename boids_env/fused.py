@@ -37,7 +37,7 @@ def fusable(env: Any) -> bool:
     cfg, episode = env.episode_config, env.episode
     obs, lay = cfg.observation, episode.observer.layout
     return (cfg.world.drive != "unicycle" and cfg.scenario.robots < KD_TREE_MIN_ROBOTS
-            and not (lay.static or lay.lidar or lay.pedestrians or lay.headings or lay.route)
+            and lay.study_only
             and obs.obs_noise == 0 and not obs.route_leader and obs.frame in ("world", "leader")
             and cfg.metrics.alignment_source == "command" and episode.realism is None
             and episode.people is None and episode.rewards.study_only)

@@ -121,7 +121,7 @@ KERNELS: dict[str, Twin] = {
     # boids_env._compiled.study: the study's step
     "study.nearest": Twin("boids_env.observations:nearest_neighbours",
                           ("boids_env.observations:nearest_neighbours",)),
-    "study.fill_observations": Twin(_OBSERVER, ("boids_env.observations:_study_blocks",)),
+    "study.fill_observations": Twin(_OBSERVER, ("boids_env.observations.observer:_study_blocks",)),
     "study.violations": Twin("boids_env.rewards:Rewards.terms",
                              ("boids_env.metrics:flags_for", "boids_env.rewards:Rewards.terms")),
     "study.rotated": Twin("boids_env.vectors:times_matrix", ("boids_env.vectors:times_matrix",)),
@@ -154,9 +154,9 @@ KERNELS: dict[str, Twin] = {
     "scene.box_within": Twin(_SCENE + "within", (_SCENE + "_box_within",)),
     "scene.segments_blocked": Twin(_SCENE + "blocked", (_SCENE + "_capsules_blocked",)),
     "scene.raycast": Twin(_SCENE + "raycast", (_SCENE + "raycast",)),
-    "scene.ray_circles_nearest": Twin(_OBSERVER, ("boids_env.observations:_ranges_along",)),
+    "scene.ray_circles_nearest": Twin(_OBSERVER, ("boids_env.observations.sensing:_ranges_along",)),
     # boids_env._compiled.sensing
-    "sensing.static_block": Twin(_OBSERVER, ("boids_env.observations:_static_block",)),
+    "sensing.static_block": Twin(_OBSERVER, ("boids_env.observations.sensing:static_block",)),
     "sensing.noisy_observations": Twin(_OBSERVER, ("boids_env.observations:Observer._noise",
                                                    _OBSERVER)),
     "sensing.in_sight_ahead": Twin("boids_env.world.route:sense_route",

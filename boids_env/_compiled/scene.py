@@ -336,7 +336,7 @@ def raycast(origins, directions, box, has_box, qa, qb, qr, table, origin, shape,
 
 @njit(cache=True)
 def ray_circles_nearest(origins, directions, centres, radii):  # pragma: no cover - compiled
-    """``observations._ranges_along``' robot discs: the distance (F, R) along each ray to
+    """``observations.sensing._ranges_along``' robot discs: the distance (F, R) along each ray to
     the nearest of each follower's discs ``centres`` (F, K, 2) of ``radii`` (F, K)."""
     f, rays = directions.shape[0], directions.shape[1]
     out = np.empty((f, rays))

@@ -12,7 +12,7 @@ from numba import njit
 
 @njit(cache=True)
 def static_block(offsets, valid, frame, turned):  # pragma: no cover - compiled
-    """``observations._static_block`` from ``Scene.nearest_points``'s offsets (P, M, 2) and
+    """``observations.sensing.static_block`` from ``Scene.nearest_points``'s offsets (P, M, 2) and
     valid flags (P, M): (P, 3M) float64, each slot's offset turned into ``frame`` (when
     ``turned``; ``vectors.times_matrix``'s products and add) times its flag, then the flag."""
     p, slots = valid.shape
