@@ -9,6 +9,7 @@ Bad values raise ``ValueError`` naming the field, the value and the allowed rang
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
@@ -38,12 +39,17 @@ from boids_env.world.scenario import scene_matrix as scene_matrix
 if TYPE_CHECKING:
     from pathlib import Path
 
+    from boids_env.world.robots import RobotModel
     from boids_env.world.scene import Scene
 
 FRAMES = ("world", "leader")
 """Observation (and action) frames: the study's world frame, or the leader's heading frame
 (opt-in; see :mod:`boids_env.observations`)."""
 
+
+MAX_SPEED_RANGE = (0.0, 5.0)
+"""The range (m/s, open below) of a top speed: the robots' ``max_speed``, a controller's,
+a random policy's; the one check every layer uses."""
 
 # The range checks live in boids_env.checks (shared with the realism section); these names are
 # kept for the other packages' configs (e.g. train.config).
@@ -106,8 +112,8 @@ class WorldConfig:
                                            lo_open=True, unit="m"))
         _set(self, "robot_mass", _number("robot_mass", self.robot_mass, 0.001, 100,
                                          unit="kg"))
-        _set(self, "max_speed", _number("max_speed", self.max_speed, 0.0, 5.0, lo_open=True,
-                                        unit="m/s"))
+        _set(self, "max_speed", _number("max_speed", self.max_speed, *MAX_SPEED_RANGE,
+                                        lo_open=True, unit="m/s"))
         _set(self, "drive_force", _number("drive_force", self.drive_force, 0.0, 1000,
                                           lo_open=True, unit="N"))
         _set(self, "dt", _number("dt", self.dt, 0.0, 1.0, lo_open=True, unit="s"))
@@ -121,13 +127,13 @@ class WorldConfig:
         self._check_robot()
 
     def _check_robot(self) -> None:
-        """The robot model's fields: a known preset and drive, a unicycle's turn limits."""
-        from boids_env.world.robots import DRIVES, MAX_TURN_PER_SUBSTEP, PRESETS, VELOCITY_LAWS
+        """The robot model's fields: a known preset, drive and velocity law, the turn limits
+        in range, and whatever the drive itself requires (:meth:`RobotModel.check_config`)."""
+        from boids_env.world.robots import PRESETS, VELOCITY_LAWS, drive_model
 
         if self.robot not in PRESETS:
             raise ValueError(f"robot must be one of {sorted(PRESETS)}, got {self.robot!r}")
-        if self.drive not in DRIVES:
-            raise ValueError(f"drive must be one of {DRIVES}, got {self.drive!r}")
+        model = drive_model(self.drive)
         if self.velocity_law not in VELOCITY_LAWS:
             raise ValueError(f"velocity_law must be one of {VELOCITY_LAWS}, got "
                              f"{self.velocity_law!r}")
@@ -137,23 +143,20 @@ class WorldConfig:
             if getattr(self, name) is not None:
                 _set(self, name, _number(name, getattr(self, name), 0.0, hi, lo_open=True,
                                          unit=unit))
-        if self.drive != "unicycle":
-            return
-        if self.max_turn_rate is None:
-            raise ValueError("drive='unicycle' needs max_turn_rate (rad/s), e.g. 2.84 for a "
-                             "TurtleBot3 Burger (or choose robot=...)")
-        turn = self.max_turn_rate * self.dt / self.substeps
-        if turn > MAX_TURN_PER_SUBSTEP:
-            raise ValueError(
-                f"a unicycle may turn at most {MAX_TURN_PER_SUBSTEP} rad per physics substep; "
-                f"max_turn_rate={self.max_turn_rate:g} rad/s × dt={self.dt:g} s / substeps="
-                f"{self.substeps} turns {turn:.3g} rad: use substeps >= "
-                f"{math.ceil(self.max_turn_rate * self.dt / MAX_TURN_PER_SUBSTEP)}")
-        gain = self.max_turn_rate if self.heading_gain is None else self.heading_gain
-        if gain * self.dt > 1.0:
-            raise ValueError(
-                f"heading_gain × dt must be at most 1 (the heading would overshoot its command "
-                f"within a control period), got {gain:g} 1/s × {self.dt:g} s")
+        model.check_config(self)
+
+    @property
+    def drive_model(self) -> type[RobotModel]:
+        """The robot model class of ``drive`` (:data:`boids_env.world.robots.DRIVES`): what
+        every caller asks about the drive (its heading, its turn time, its checks)."""
+        from boids_env.world.robots import drive_model
+
+        return drive_model(self.drive)
+
+    @property
+    def has_heading(self) -> bool:
+        """Whether these robots have a heading (their drive's answer)."""
+        return self.drive_model.has_heading
 
 
 @dataclass(frozen=True)
@@ -436,7 +439,7 @@ class EnvConfig:
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
         """Builds a config from flat field names; unknown names raise ``TypeError``."""
-        return cls().replace(**kwargs)
+        return _default_config(cls).replace(**kwargs)
 
     def replace(self, **kwargs: Any) -> EnvConfig:
         """Returns a copy with the named flat fields changed (validated). Choosing a
@@ -528,6 +531,12 @@ class EnvConfig:
         return cls.from_kwargs(**flat)
 
 
+@functools.cache
+def _default_config(cls: type[EnvConfig]) -> EnvConfig:
+    """The default config of ``cls``, built (and checked) once per process."""
+    return cls()
+
+
 DEFAULT_PEDESTRIAN_SLOTS = 4
 """Pedestrian slots in the observations with a crowd (``pedestrian_slots``)."""
 DEFAULT_STATIC_SLOTS = 4
@@ -553,12 +562,11 @@ def _check_walk_start(given: Any, sc: ScenarioConfig) -> None:
         same = tuple(map(float, given)) == sc.start
     except (TypeError, ValueError):
         same = False
-    if sc.leader == "trajectory" and not same:
+    fixed = sc.leader_kind.fixed_start(sc)
+    if fixed is not None and not same:
         raise ValueError(
-            f"start {tuple(given)} cannot be given with leader='trajectory': the walk "
-            f"{sc.leader_trajectory} fixes the start at its first row ({sc.start[0]:g}, "
-            f"{sc.start[1]:g}); drop start (boids run: --start), or record a walk that starts "
-            f"where you want")
+            f"start {tuple(given)} cannot be given with leader={sc.leader!r}: {fixed}; drop "
+            f"start (boids run: --start), or record a walk that starts where you want")
 
 
 def _has_items(value: Any) -> bool:
@@ -617,19 +625,9 @@ def fastest_speed(config: EnvConfig) -> tuple[float, str]:
 
 def _people_speeds(sc: ScenarioConfig) -> list[tuple[float, str]]:
     """The fastest the person and the crowd move (m/s), and what sets it."""
-    from boids_env.world.people import CROWD_SPEED_SPREAD, GAIT_RANGE
+    from boids_env.world.people import CROWD_SPEED_SPREAD
 
-    out = []
-    if sc.leader == "person" and sc.path != "external":
-        out.append((sc.leader_speed * GAIT_RANGE[1],
-                    f"a person at leader_speed={sc.leader_speed:g} m/s × {GAIT_RANGE[1]:g} "
-                    f"(its fastest gait)"))
-    if sc.leader == "trajectory":
-        from boids_env.world.walks import max_walk_speed, read_walk
-
-        assert sc.leader_trajectory is not None
-        fastest = max_walk_speed(*read_walk(sc.leader_trajectory))
-        out.append((fastest, f"the walk {sc.leader_trajectory} ({fastest:.3g} m/s at most)"))
+    out = sc.leader_kind.top_speeds(sc)
     if sc.crowd:
         out.append((sc.crowd_speed * CROWD_SPEED_SPREAD[1],
                     f"pedestrians at crowd_speed={sc.crowd_speed:g} m/s × "
@@ -658,14 +656,14 @@ def _check_physics(config: EnvConfig) -> None:
             f"collision_slop must be at most a quarter of robot_radius ({w.robot_radius / 4:g} m)"
             f", got {w.collision_slop:g} m")
     obs = config.observation
-    if obs.action == "unicycle" and w.drive != "unicycle":
-        raise ValueError("action='unicycle' takes (v, ω) for robots with a heading; this robot "
-                         "is holonomic (drive='holonomic'): choose robot=... with a unicycle "
-                         "drive, or action='velocity'")
-    if config.metrics.alignment_source == "heading" and w.drive != "unicycle":
-        raise ValueError("alignment_source='heading' compares the robots' headings; this "
-                         "robot is holonomic and has none (drive='holonomic'): choose robot=... "
-                         "with a unicycle drive")
+    if obs.action == "unicycle" and not w.has_heading:
+        raise ValueError(f"action='unicycle' takes (v, ω) for robots with a heading; this robot "
+                         f"is {w.drive} (drive={w.drive!r}) and has none: choose robot=... "
+                         f"with a unicycle drive, or action='velocity'")
+    if config.metrics.alignment_source == "heading" and not w.has_heading:
+        raise ValueError(f"alignment_source='heading' compares the robots' headings; this "
+                         f"robot is {w.drive} and has none (drive={w.drive!r}): choose "
+                         f"robot=... with a unicycle drive")
     if obs.action == "unicycle" and config.realism.active:
         raise ValueError("realism acts on world-frame velocity commands: use it with "
                          "action='velocity' (the robots' drivers then turn the executed "
@@ -696,9 +694,25 @@ def _check_fits(config: EnvConfig) -> None:
     actual path: a recorded walk, a turned start grid) always runs after it, so no start
     position or leader kind skips it."""
     _check_physics(config)
+    scene = config.scene
+    key = (config.world, config.scenario, id(scene))
+    if key in _FITTED:
+        return  # this world and scenario were checked against this scene already
     if config.world.scene == "arena" and config.scenario.start == (0.0, 0.0):
         _check_arena_extents(config)
     _check_scene(config)
+    if len(_FITTED) >= FITTED_LIMIT:
+        _FITTED.clear()
+    _FITTED[key] = scene  # held: the scene's id stays its own while the entry lives
+
+
+FITTED_LIMIT = 256
+"""The most (world, scenario, scene) combinations :func:`_check_fits` remembers as fitting."""
+_FITTED: dict[tuple[Any, ...], Scene] = {}
+"""The combinations that passed the scene check (a config's sections are frozen values, the
+scene the loaded object): building a config again from the same values (a command passes
+one config through several layers, a suite builds each case's variants) checks the scene
+once, not once per copy."""
 
 
 def _check_arena_extents(config: EnvConfig) -> None:
@@ -727,13 +741,12 @@ def _start_advice(sc: ScenarioConfig, k: int) -> str:
     """What to change when robot ``k`` starts too close to the scene (a walk fixes the
     leader's start: only the grid behind it can move)."""
     grid = f"layout_spacing ({sc.layout_spacing:g} m) or robots ({sc.robots})"
-    if sc.leader != "trajectory":
+    fixed = sc.leader_kind.fixed_start(sc)
+    if fixed is None:
         return f"change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, {grid}"
     if k == 0:
-        return (f"the walk {sc.leader_trajectory} starts there (it fixes the start): use a "
-                f"walk that starts in free space or another scene")
-    return (f"the walk {sc.leader_trajectory} fixes the start ({sc.start[0]:g}, "
-            f"{sc.start[1]:g}): change start_heading (the grid lies behind it), {grid}")
+        return f"{fixed}: use one that starts in free space or another scene"
+    return f"{fixed}: change start_heading (the grid lies behind it), {grid}"
 
 
 def _check_scene(config: EnvConfig) -> None:
@@ -748,14 +761,15 @@ def _check_scene(config: EnvConfig) -> None:
     path = preview_path(sc, w.dt)
     cells = initial_positions(sc, None, layout_heading(sc, w.scene, path))
     need = np.full(len(cells), w.robot_radius + sc.init_jitter * math.sqrt(2))
-    if sc.leader != "robot":
-        need[0] = sc.person_radius  # a person (or a walk) starts exactly at its start
+    body = sc.leader_radius
+    if body is not None:
+        need[0] = body  # a person (or a walk) starts exactly at its start
     clear = scene.clearance(cells)
     bad = np.flatnonzero(clear <= need)
     if bad.size:
         k = int(bad[0])
         who = "the leader" if k == 0 else f"follower {k}"
-        rule = ("person_radius" if k == 0 and sc.leader != "robot"
+        rule = ("person_radius" if k == 0 and body is not None
                 else "robot_radius + init_jitter·√2")
         raise ValueError(
             f"the start does not fit scene {scene.name!r}: {who} would start at "
@@ -765,8 +779,7 @@ def _check_scene(config: EnvConfig) -> None:
     if path is None:
         return
     blocked, which = scene.blocked(path[:-1], path[1:], w.robot_radius)
-    what = (f"the walk {sc.leader_trajectory}" if sc.leader == "trajectory"
-            else f"the leader path '{sc.path}'")
+    what = sc.leader_kind.path_words(sc)
     if scene.box is not None:
         margin = w.robot_radius + sc.arrival_margin
         near_box = scene.box_clearance(path) <= margin
@@ -788,182 +801,3 @@ def _check_scene(config: EnvConfig) -> None:
             f"{what} of scene {scene.name!r}: {leg} crosses or passes "
             f"closer than robot_radius ({w.robot_radius:g} m) to {obstacle}; change the "
             f"waypoints, path, path_size, path_rotation or start")
-
-
-@dataclass(frozen=True)
-class ReynoldsParams:
-    """Parameters of the Reynolds + leader controller (DESIGN section 3)."""
-
-    separation_weight: float = 1.0
-    """Weight of the separation term (paper: 1.0)."""
-    cohesion_weight: float = 1.0
-    """Weight of the cohesion term (paper: 1.0)."""
-    alignment_weight: float = 1.0
-    """Weight of the alignment term (paper: 1.0)."""
-    leader_weight: float = 1.0
-    """Weight of the leader-following term. Study: 1.0, 1.1, 1.2."""
-    horizon: float = 1.0
-    """Neighbour radius (m). Paper 1.0, original code 0.75. Bound to an env, the env's sensing
-    ``horizon`` unless the preset or the caller sets one (at most the env's)."""
-    desired_separation: float = 0.7
-    """Neighbours closer than this push away (m). Paper 0.7, original code 0.45."""
-    max_speed: float = 0.5
-    """Commanded speed limit (m/s). Bound to an env, the robots' ``max_speed`` unless given
-    (at most the env's)."""
-    max_force: float = 0.23
-    """Steering force limit (N); not stated in the paper, the original code's 0.23."""
-    mass: float = 0.18
-    """Mass (kg) used to integrate the steering force."""
-    dt: float = 0.1
-    """Control period (s) of an unbound controller; bound to an env, always the env's ``dt``
-    (see :data:`ENV_OWNED`)."""
-    startup_time: float = 2.0
-    """Zero command for this long after reset (s); bound to an env, always the env's
-    ``startup_time``."""
-    obstacle_avoidance: bool | None = None
-    """Steer away from walls and obstacles (not in the study). None: on whenever the env's
-    scene is not the study's empty arena and its observations carry static slots (the policy
-    learns both from :meth:`~boids_env.policies.ReynoldsPolicy.bind`), off in the arena, so
-    the study's numbers stay exact."""
-    obstacle_weight: float = 1.0
-    """Weight of the obstacle-avoidance force. It is served first: the other rules share
-    what is left of ``max_force`` (Reynolds' prioritised acceleration allocation)."""
-    obstacle_distance: float = 0.4
-    """Centre-to-surface distance (m) within which an obstacle pushes a follower away, at
-    full strength at contact; shortened by the follower's approach speed × lookahead."""
-    obstacle_lookahead: float = 1.0
-    """Look-ahead time (s): approaching an obstacle at speed u counts as being u × lookahead
-    closer to it, so a fast follower starts braking earlier."""
-    personal_space: float = 0.0
-    """Radius (m) of a person's personal space the leader term keeps clear (the
-    proxemics-aware variant, preset ``proxemic``: 1.2 m, Hall's personal zone): the leader
-    term seeks the circle of this radius around the leader and pushes followers sideways out
-    of its path ahead. 0: the study's leader term (seek the leader's centre)."""
-    follow_route: bool = False
-    """Seek the leader along its route through free space instead of the straight line (not in
-    the study; preset ``route``): the leader term becomes the route's direction × its length
-    from the observations' ``route`` block, so a follower behind a wall heads for the door.
-    The policy then asks the env for ``route_sensing``."""
-    robot_avoidance: float = 0.0
-    """Surface-to-surface distance (m) within which another robot counts as an obstacle
-    point of the obstacle rule (served first, its approach speed × ``obstacle_lookahead``
-    counted as nearer), so that a flock squeezed through a door or a corridor does not
-    touch (not in the study; preset ``route``: 0.15). 0: off."""
-    scale_to_robot: bool = False
-    """Size the distances for the env's robot (not in the study; preset ``scaled``): bound to
-    an env whose ``robot_radius`` r differs from the study's Sphero (r0 = 0.036 m), the
-    centre-to-centre distances ``desired_separation`` and ``personal_space`` grow by 2·(r − r0)
-    and the centre-to-surface ``obstacle_distance`` by r − r0, so the free gaps between bodies
-    stay the ones given for the Sphero (``robot_avoidance`` is a surface gap already), and
-    ``obstacle_lookahead`` and ``path_time`` grow by the time the robot needs to turn a
-    quarter turn (0 for a holonomic one), so a robot that must turn to steer away starts that
-    much earlier; ``personal_space`` also grows by ``max_speed`` × that time (the way a
-    leader at the robots' top speed comes while a follower turns), and ``path_width`` (when
-    on) by 2·(r − r0). A holonomic Sphero's parameters are unchanged."""
-
-    path_width: float = 0.0
-    """For robots with a heading (they turn before they move), with ``follow_route`` and
-    ``personal_space`` on: half-width (m, centre to centre) of the strip ahead of the leader
-    that is kept clear (preset ``scaled``: 0.3, sized for the robot). Inside it the leader
-    term does not pull towards the leader; it pushes sideways to ``path_width`` from the
-    leader's line and forwards by ``path_flee``; the strip lies along the leader's velocity
-    from ``path_speed`` on and along its heading below (a robot leader turning in place
-    drives off along it) and reaches ``path_time`` × max(its speed, ``max_speed``) +
-    ``personal_space`` ahead. 0: off (the proxemic strip of ``personal_space``, 2 s)."""
-    path_time: float = 2.0
-    """Seconds of the leader's travel the ``path_width`` strip covers (grown by the robot's
-    quarter-turn time with ``scale_to_robot``)."""
-    path_flee: float = 0.0
-    """Weight of the ``path_width`` strip's push along the leader's travel (m per m of strip
-    left ahead): a follower that cannot step aside (a corridor) moves on ahead of the
-    leader. Preset ``scaled``: 0.5."""
-    walls_first: bool = False
-    """For robots with a heading, with ``robot_avoidance`` on: serve the walls' (and
-    people's) push before other robots', and drop a quarter of a robot's push against it,
-    so that a follower squeezed between a neighbour and a wall is not held against the wall
-    (preset ``scaled``). Off: the pushes are summed."""
-    path_speed: float = 0.2
-    """The ``path_width`` strip follows the leader's velocity from this speed (m/s) on, its
-    heading below."""
-
-    def __post_init__(self) -> None:
-        if self.obstacle_avoidance is not None:
-            _set(self, "obstacle_avoidance", _flag("obstacle_avoidance",
-                                                   self.obstacle_avoidance))
-        _set(self, "obstacle_weight", _number("obstacle_weight", self.obstacle_weight, 0.0, 100))
-        _set(self, "obstacle_distance", _number("obstacle_distance", self.obstacle_distance,
-                                                0.0, 10, lo_open=True, unit="m"))
-        _set(self, "obstacle_lookahead", _number("obstacle_lookahead", self.obstacle_lookahead,
-                                                 0.0, 60, unit="s"))
-        _set(self, "personal_space", _number("personal_space", self.personal_space, 0.0, 5.0,
-                                             unit="m"))
-        _set(self, "path_time", _number("path_time", self.path_time, 0.0, 60, unit="s"))
-        _set(self, "path_flee", _number("path_flee", self.path_flee, 0.0, 100))
-        _set(self, "path_width", _number("path_width", self.path_width, 0.0, 5, unit="m"))
-        _set(self, "path_speed", _number("path_speed", self.path_speed, 0.0, 5, lo_open=True,
-                                         unit="m/s"))
-        _set(self, "walls_first", _flag("walls_first", self.walls_first))
-        _set(self, "follow_route", _flag("follow_route", self.follow_route))
-        _set(self, "scale_to_robot", _flag("scale_to_robot", self.scale_to_robot))
-        _set(self, "robot_avoidance", _number("robot_avoidance", self.robot_avoidance, 0.0, 5.0,
-                                              unit="m"))
-        for name in ("separation_weight", "cohesion_weight", "alignment_weight",
-                     "leader_weight"):
-            _set(self, name, _number(name, getattr(self, name), 0.0, 100))
-        _set(self, "horizon", _number("horizon", self.horizon, 0.0, 100, lo_open=True, unit="m"))
-        _set(self, "desired_separation", _number("desired_separation", self.desired_separation,
-                                                 0.0, 100, unit="m"))
-        _set(self, "max_speed", _number("max_speed", self.max_speed, 0.0, 5, lo_open=True,
-                                        unit="m/s"))
-        _set(self, "max_force", _number("max_force", self.max_force, 0.0, 1000, lo_open=True,
-                                        unit="N"))
-        _set(self, "mass", _number("mass", self.mass, 0.0, 100, lo_open=True, unit="kg"))
-        _set(self, "dt", _number("dt", self.dt, 0.0, 1, lo_open=True, unit="s"))
-        _set(self, "startup_time", _number("startup_time", self.startup_time, 0.0, 600,
-                                           unit="s"))
-
-
-PRESETS: dict[str, ReynoldsParams] = {
-    # Table IV of the paper.
-    "paper": ReynoldsParams(),
-    # The defaults of the original code (boids_ros / sphero_formation).
-    "boids_ros": ReynoldsParams(horizon=0.75, desired_separation=0.45),
-    # Beyond the study: the proxemics-aware leader term for following a person.
-    "proxemic": ReynoldsParams(personal_space=1.2),
-    # Beyond the study: the leader sought along its route through doors (route sensing).
-    "route": ReynoldsParams(follow_route=True, robot_avoidance=0.15),
-    # Beyond the study: route following sized for the robot (issue 38), and a clear path
-    # ahead of the leader (the proxemic leader term along the route), so that robots larger
-    # than a Sphero never pack into contact nor meet a leader backing out of a dead end. For
-    # a robot with a heading (it turns before it moves) the path is cleared earlier and wider
-    # (path_width, path_flee, sized by its turning time) and walls are served before
-    # neighbours (walls_first); walls are avoided in the study's arena too.
-    "scaled": ReynoldsParams(follow_route=True, robot_avoidance=0.15, personal_space=0.56,
-                             scale_to_robot=True, path_width=0.3, path_flee=0.5,
-                             walls_first=True, obstacle_avoidance=True),
-}
-"""Named controller parameter sets (DESIGN section 3); ``paper`` is the default."""
-
-
-ENV_OWNED = tuple(f.name for f in fields(ReynoldsParams) if f.name in FIELD_OWNER)
-"""Reynolds parameters that are physical or timing quantities of the env (``horizon``,
-``max_speed``, ``dt``, ``startup_time``): the env's config owns them. A suite routes them to
-the env (every policy's episodes see them); a policy bound to an env takes them from its
-config (:func:`env_quantities`)."""
-
-
-def env_quantities(config: EnvConfig) -> dict[str, float]:
-    """The values of :data:`ENV_OWNED` in ``config``: its sensing horizon (m), robots' top
-    speed (m/s), control period (s) and start-up time (s), by Reynolds parameter name."""
-    return {name: getattr(getattr(config, FIELD_OWNER[name]), name) for name in ENV_OWNED}
-
-
-def reynolds_params(preset: str = "paper", **overrides: Any) -> ReynoldsParams:
-    """Returns the named preset with ``overrides`` applied (validated)."""
-    if preset not in PRESETS:
-        raise ValueError(f"preset must be one of {sorted(PRESETS)}, got {preset!r}")
-    valid = {f.name for f in fields(ReynoldsParams)}
-    unknown = sorted(set(overrides) - valid)
-    if unknown:
-        raise TypeError(f"unknown Reynolds parameter(s) {unknown}; valid: {sorted(valid)}")
-    return dataclasses.replace(PRESETS[preset], **overrides)

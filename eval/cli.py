@@ -9,9 +9,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from boids_env.config import PATHS, PRESETS, EnvConfig
+from boids_env.config import PATHS, EnvConfig
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
+from boids_env.policies.reynolds_params import PRESETS
 from boids_env.world.realism import REALISMS
 from boids_env.world.robots import PRESETS as ROBOTS
 from boids_env.world.scenario import LEADERS
