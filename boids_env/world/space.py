@@ -27,7 +27,7 @@ import pymunk
 import pymunk.batch as batch
 from scipy.spatial import cKDTree
 
-from boids_env.config import WorldConfig
+from boids_env.config.world import WorldConfig
 from boids_env.metrics import CONTACT_TOLERANCE
 from boids_env.world.robots import make_model
 from boids_env.world.scene import Scene
