@@ -301,9 +301,10 @@ def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _needs_people(fields: dict[str, Any]) -> bool:
-    """Whether the pedestrian model runs: a person walking a path or a crowd."""
-    walking = fields.get("leader") == "person" and fields.get("path") != "external"
-    return walking or bool(fields.get("crowd"))
+    """Whether the pedestrian model runs in the (checked) config of ``fields``: a leader
+    the model walks (a person on a path) or a crowd."""
+    sc = EnvConfig.from_kwargs(**fields).scenario
+    return sc.leader_kind.walks(sc) or sc.crowd > 0
 
 
 def _with_settings(fields: dict[str, Any], settings: list[tuple[str, Any]]) -> dict[str, Any]:

@@ -296,23 +296,18 @@ class RobotModel:
 
     def initial_native(self, n: int) -> FloatArray | None:
         """The native commands before the first step (None for a drive without them)."""
-        return None
 
     def odometry_headings(self) -> FloatArray | None:
         """(N, 2) unit heading vectors as odometry reports them; None without headings."""
-        return None
 
     def headings(self) -> FloatArray | None:
         """(N,) headings (rad, in [−π, π]); None without headings."""
-        return None
 
     def turn_rates(self) -> FloatArray | None:
         """(N,) turn rates (rad/s); None without headings."""
-        return None
 
     def quaternions(self) -> FloatArray | None:
         """(N, 2) orientations as (z, w) of a rotation about z; None without headings."""
-        return None
 
     def add_bodies(self, space: pymunk.Space, positions: FloatArray,
                    leader: tuple[float, float, float] | None = None
