@@ -28,40 +28,33 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from boids_env.config import (
-        PRESETS,
         EnvConfig,
         MetricsConfig,
         ObservationConfig,
-        ReynoldsParams,
         ScenarioConfig,
         WorldConfig,
-        reynolds_params,
     )
     from boids_env.environment import BoidsEnv, env, parallel_env, raw_env
 
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    **dict.fromkeys(("PRESETS", "EnvConfig", "MetricsConfig", "ObservationConfig",
-                     "ReynoldsParams", "ScenarioConfig", "WorldConfig", "reynolds_params"),
-                    "boids_env.config"),
+    **dict.fromkeys(("EnvConfig", "MetricsConfig", "ObservationConfig", "ScenarioConfig",
+                     "WorldConfig"), "boids_env.config"),
     **dict.fromkeys(("BoidsEnv", "env", "parallel_env", "raw_env"), "boids_env.environment"),
 }
 """Each public name and the module that defines it."""
 
 __all__ = [
-    "PRESETS",
     "BoidsEnv",
     "EnvConfig",
     "MetricsConfig",
     "ObservationConfig",
-    "ReynoldsParams",
     "ScenarioConfig",
     "WorldConfig",
     "env",
     "parallel_env",
     "raw_env",
-    "reynolds_params",
 ]
 
 

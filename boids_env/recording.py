@@ -81,8 +81,7 @@ class Recording:
         return metrics.episode_metrics(self.positions[1:], self.velocities[1:],
                                        self.commanded[1:], cfg.metrics, cfg.world.dt,
                                        cfg.world.robot_radius, cfg.scene, self.leader_path,
-                                       person_radius=None if sc.leader == "robot"
-                                       else sc.person_radius, pedestrians=crowd,
+                                       person_radius=sc.leader_radius, pedestrians=crowd,
                                        pedestrian_radius=sc.person_radius,
                                        headings=None if self.headings is None
                                        else self.headings[1:])

@@ -9,9 +9,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from boids_env.config import PATHS, PRESETS, EnvConfig
+from boids_env.config import PATHS, EnvConfig
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.extras import require
+from boids_env.policies.reynolds_params import PRESETS
 from boids_env.world.realism import REALISMS
 from boids_env.world.robots import PRESETS as ROBOTS
 from boids_env.world.scenario import LEADERS
@@ -300,9 +301,10 @@ def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _needs_people(fields: dict[str, Any]) -> bool:
-    """Whether the pedestrian model runs: a person walking a path or a crowd."""
-    walking = fields.get("leader") == "person" and fields.get("path") != "external"
-    return walking or bool(fields.get("crowd"))
+    """Whether the pedestrian model runs in the (checked) config of ``fields``: a leader
+    the model walks (a person on a path) or a crowd."""
+    sc = EnvConfig.from_kwargs(**fields).scenario
+    return sc.leader_kind.walks(sc) or sc.crowd > 0
 
 
 def _with_settings(fields: dict[str, Any], settings: list[tuple[str, Any]]) -> dict[str, Any]:

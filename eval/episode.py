@@ -78,7 +78,8 @@ def check_training(policy: Policy, config: EnvConfig) -> None:
                          f"env_fields {fields})")
 
 
-def world_changes(policy: Any, fields: dict[str, Any] | None = None
+def world_changes(policy: Any, fields: dict[str, Any] | None = None, *,
+                  configs: tuple[EnvConfig, EnvConfig] | None = None
                   ) -> dict[str, dict[str, list[Any]]]:
     """What running ``policy`` changes in the world of the episodes ``fields`` ask for:
     ``changed``, the fields its env fields (a model's, or a Reynolds policy's sensing
@@ -86,10 +87,13 @@ def world_changes(policy: Any, fields: dict[str, Any] | None = None
     own observation and action interface, which changes no one else's world);
     ``untrained``, the fields of a model's training that ``fields`` override, as
     ``[trained, ran]`` (the reward fields aside: they change no episode). Empty tables when
-    nothing changes."""
+    nothing changes. ``configs``: the (asked, ran) configs when the caller has built them
+    already (from ``fields`` and :func:`env_fields_for`), so that none is built twice."""
     fields = dict(fields or {})
-    asked = EnvConfig.from_kwargs(**fields)
-    ran = EnvConfig.from_kwargs(**env_fields_for(policy, fields))
+    if configs is None:
+        configs = (EnvConfig.from_kwargs(**fields),
+                   EnvConfig.from_kwargs(**env_fields_for(policy, fields)))
+    asked, ran = configs
     changed = {}
     for name, section in FIELD_OWNER.items():
         if section not in WORLD_SECTIONS or (section == "observation"

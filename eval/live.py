@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.config import ReynoldsParams
+from boids_env.policies.reynolds_params import ReynoldsParams
 
 TUNABLE = (("1", "separation_weight", 0.1), ("2", "cohesion_weight", 0.1),
            ("3", "alignment_weight", 0.1), ("4", "leader_weight", 0.1),
@@ -138,10 +138,10 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
     is no display. ``trust_model``: see :func:`~boids_env.policies.registry.load_policy`'s
     ``trust``."""
     from boids_env.checks import number
-    from boids_env.config import reynolds_params
     from boids_env.environment import BoidsEnv
     from boids_env.eval.episode import bind_policy, env_fields_for, warn_outside_card
     from boids_env.policies.registry import load_policy, split_preset
+    from boids_env.policies.reynolds_params import reynolds_params
     from boids_env.recording import Recorder
 
     number("fast_factor", fast_factor, 0.0, 1000.0, lo_open=True, unit="times real time")

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from boids_env.config import EnvConfig
 from boids_env.environment import BoidsEnv
 from boids_env.eval.episode import (
     EpisodeResult,
@@ -138,8 +139,11 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
     overrides = {} if leader_weight is None else {"leader_weight": leader_weight}
     pol = load_policy(policy, preset=preset, trust=trust_model, **overrides)
     params = getattr(pol, "params", None)
-    changes = world_changes(pol, env_fields)  # recorded in config.json and printed
-    env = BoidsEnv(**env_fields_for(pol, env_fields))
+    # the asked config and the one the policy runs in, each built and checked once
+    asked = EnvConfig.from_kwargs(**(env_fields or {}))
+    ran = EnvConfig.from_kwargs(**env_fields_for(pol, env_fields))
+    changes = world_changes(pol, env_fields, configs=(asked, ran))  # config.json, printed
+    env = BoidsEnv(ran)
     warn_outside_card(pol, {"": env.config}, name=policy)  # one line; the run goes on
     view, on_step = _live_view(env, live, quiet)
     try:
@@ -149,24 +153,44 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
         if view is not None:
             view.close()
     say = (lambda *a: None) if quiet else print
-    name = f"{policy} · preset {preset}" if params is not None else policy
-    if env.config.realism.active:
-        name += f" · realism {env.config.realism.realism}"
-    if env.config.world.scene != "arena":
-        name += f" · scene {env.config.scene.name}"
-    say(f"policy {name} · robots {env.config.scenario.robots} · "
-        f"leader {env.config.scenario.leader_speed} m/s · seed {seed} · "
-        f"episode {result.wall_time:.2f} s wall")
-    say(metrics_table(result.metrics))
+    shown_preset = preset if params is not None else None
+    _say_episode(say, env.config, policy, shown_preset, seed, result)
     _say_changes(say, changes)
     if folder is None:
         return result
     assert result.recording is not None
-    shown_preset = preset if params is not None else None
     result.recording.extra.update(policy=policy, preset=shown_preset)
     config = {"env": env.config.to_dict(), "policy": policy, "preset": shown_preset,
               "policy_params": vars(params) if params is not None else None, "seed": seed,
               "model_env_fields": getattr(pol, "env_fields", None), "world_changes": changes}
+    _write_outputs(folder, result, config, say, video=fmt, frame_every=frame_every,
+                   progress=progress and not quiet, bags=(bag, mcap), bag_start=bag_start,
+                   twist_stamped=twist_stamped)
+    return result
+
+
+def _say_episode(say: Callable[..., Any], config: EnvConfig, policy: str, preset: str | None,
+                 seed: int, result: EpisodeResult) -> None:
+    """Prints the episode's line (policy, case, seed, wall time) and its metrics table."""
+    name = f"{policy} · preset {preset}" if preset is not None else policy
+    if config.realism.active:
+        name += f" · realism {config.realism.realism}"
+    if config.world.scene != "arena":
+        name += f" · scene {config.scene.name}"
+    say(f"policy {name} · robots {config.scenario.robots} · "
+        f"leader {config.scenario.leader_speed} m/s · seed {seed} · "
+        f"episode {result.wall_time:.2f} s wall")
+    say(metrics_table(result.metrics))
+
+
+def _write_outputs(folder: RunFolder, result: EpisodeResult, config: dict[str, Any],
+                   say: Callable[..., Any], *, video: str | None, frame_every: int,
+                   progress: bool, bags: tuple[bool, bool], bag_start: float | None,
+                   twist_stamped: bool) -> None:
+    """Writes the run's files into ``folder`` (atomically: a temporary folder moved into
+    place) and says what it wrote and how long it took."""
+    assert result.recording is not None
+    fmt, (bag, mcap) = video, bags
     start = time.perf_counter()
     timings: list[str] = []
     with folder as tmp:
@@ -177,7 +201,7 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
             from boids_env.eval.video import write_video
 
             info = write_video(result.recording, tmp / f"episode.{fmt}",
-                               frame_every=frame_every, progress=progress and not quiet)
+                               frame_every=frame_every, progress=progress)
             timings.append(f"video {info.seconds:.1f} s for {info.frames} frames")
         if bag or mcap:
             from boids_env.rosbag import write_bag
@@ -198,7 +222,6 @@ def run(policy: str = "reynolds", *, out: str | Path | None = None, overwrite: b
     say(f"writing took {time.perf_counter() - start:.1f} s wall"
         + (f" ({'; '.join(timings)})" if timings else "")
         + f"; episode {result.wall_time:.2f} s")
-    return result
 
 
 def _say_changes(say: Any, changes: dict[str, dict[str, list[Any]]]) -> None:

@@ -13,22 +13,17 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from boids_env.config import (
-    FIELD_OWNER,
-    EnvConfig,
-    ReynoldsParams,
-    check_integer,
-    reynolds_params,
-)
+from boids_env.config import FIELD_OWNER, EnvConfig, check_integer
+from boids_env.policies.reynolds_params import ReynoldsParams, reynolds_params
 from boids_env.untrusted import excerpt, parse_toml, quote_path, read_text, safe_name
 from boids_env.world.robots import PRESETS as ROBOT_PRESETS
 
 POLICY_FIELDS = tuple(f.name for f in fields(ReynoldsParams) if f.name not in FIELD_OWNER)
 """Case fields that parameterise the Reynolds controller only (its weights, forces, ...).
 Every other field is an env config field, the physical and timing quantities the controller
-shares with the env included (``horizon``, ``max_speed``, ``dt``, ``startup_time``: each
-routed to the env, which owns it, so every policy's episodes see it and a bound Reynolds
-policy takes it from there)."""
+shares with the env included (``horizon``, ``max_speed``, and its timing ``dt``,
+``startup_time``: each routed to the env, which owns it, so every policy's episodes see it
+and a bound Reynolds policy takes it from there)."""
 
 
 @dataclass(frozen=True)

@@ -91,7 +91,7 @@ def frames(recording: Recording, *, frame_every: int = FRAME_EVERY, view: str = 
             headings = None if recording.headings is None else recording.headings[s]
             scene = Frame(recording.positions[s], s, cfg.world.robot_radius, status[s],
                           cfg.observation.horizon, overlays, (),
-                          None if sc.leader == "robot" else sc.person_radius, crowd,
+                          sc.leader_radius, crowd,
                           sc.person_radius, headings)
             shown = s % frame_every == 0 or s == last
             if shown:

@@ -3,5 +3,7 @@
 from boids_env.policies.base import BatchPolicy, Policy, SB3Predictor
 from boids_env.policies.random_policy import RandomPolicy
 from boids_env.policies.reynolds import ReynoldsPolicy
+from boids_env.policies.reynolds_params import PRESETS, ReynoldsParams, reynolds_params
 
-__all__ = ["BatchPolicy", "Policy", "RandomPolicy", "ReynoldsPolicy", "SB3Predictor"]
+__all__ = ["PRESETS", "BatchPolicy", "Policy", "RandomPolicy", "ReynoldsParams", "ReynoldsPolicy",
+           "SB3Predictor", "reynolds_params"]

@@ -30,6 +30,8 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from boids_env.world.leader_kinds import LEADER_KINDS
+
 if TYPE_CHECKING:
     from boids_env.config import EnvConfig
     from boids_env.observations import ObservationLayout
@@ -43,9 +45,13 @@ MAX_ITEMS = 64
 """The most entries of any list of a card."""
 MAX_TEXT = 400
 """The most characters of any text of a card."""
-LEADER_WORDS = {"robot": "a scripted robot leader", "person": "a walking person",
-                "trajectory": "a recorded walk"}
-"""How a warning names each leader kind."""
+def leader_words(name: str) -> str:
+    """How a warning names leader kind ``name`` (its kind's own words; an unknown name
+    as it is)."""
+    kind = LEADER_KINDS.get(name)
+    return kind.words if kind is not None else name
+
+
 SCENE_WORDS = {"arena": "the open arena", "map": "map_server maps", "shapes": "shapes files",
                "floorplan": "generated floor plans"}
 """How a warning names a scene kind (a built-in scene by its name)."""
@@ -283,8 +289,8 @@ class ModelCard:
             out.append(f"a crowd of {scenario.crowd} (trained "
                        + (f"with at most {most})" if most else "without a crowd)"))
         if scenario.leader not in self.leaders:
-            out.append(f"{LEADER_WORDS.get(scenario.leader, scenario.leader)} leading (made "
-                       f"for {' or '.join(LEADER_WORDS.get(k, k) for k in self.leaders)})")
+            out.append(f"{leader_words(scenario.leader)} leading (made "
+                       f"for {' or '.join(leader_words(k) for k in self.leaders)})")
         lo, hi = self.group_sizes
         if not lo <= scenario.robots <= hi:
             out.append(f"{scenario.robots} robots (made for {lo}-{hi})")
@@ -313,7 +319,7 @@ class ModelCard:
                  + (f"; floor plans {_seeds(self.floorplans)}" if self.floorplans else "")),
                 ("group sizes", "{}-{} robots, leader included".format(*self.group_sizes)),
                 ("leader speeds", "{:g}-{:g} m/s".format(*self.leader_speeds)),
-                ("leaders", ", ".join(LEADER_WORDS.get(k, k) for k in self.leaders)
+                ("leaders", ", ".join(leader_words(k) for k in self.leaders)
                  + (", standing still at times" if self.standstills else "")),
                 ("paths", ", ".join(self.paths)),
                 ("crowds", ", ".join(map(str, self.crowds))),

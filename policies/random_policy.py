@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.checks import number
+from boids_env.config import MAX_SPEED_RANGE
 from boids_env.policies.base import BatchPolicy
 
 
@@ -12,9 +14,8 @@ class RandomPolicy(BatchPolicy):
     """Commands a uniformly random velocity in the square ±max_speed per follower and step."""
 
     def __init__(self, max_speed: float = 0.5, seed: int | None = None) -> None:
-        if not max_speed > 0:
-            raise ValueError(f"max_speed must be > 0 m/s, got {max_speed!r}")
-        self.max_speed = float(max_speed)
+        self.max_speed = number("max_speed", max_speed, *MAX_SPEED_RANGE, lo_open=True,
+                                unit="m/s")
         self._rng = np.random.default_rng(seed)
 
     def reset(self, seed: int | None = None) -> None:

@@ -10,11 +10,11 @@ import inspect
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from boids_env.config import PRESETS
 from boids_env.policies.base import Policy
 from boids_env.policies.cards import ModelCard, read_card
 from boids_env.policies.random_policy import RandomPolicy
 from boids_env.policies.reynolds import ReynoldsPolicy
+from boids_env.policies.reynolds_params import PRESETS
 from boids_env.untrusted import open_zip
 
 if TYPE_CHECKING:

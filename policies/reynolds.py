@@ -1,4 +1,4 @@
-"""The study's reference controller: three Reynolds rules plus leader following (DESIGN §3).
+"""The study's reference controller: three Reynolds rules plus leader following.
 
 Computed from observations only, through the named layout, for all followers in one numpy pass.
 Per follower, with neighbours j (0 < |r_j| ≤ horizon, the leader included), r_j relative
@@ -53,25 +53,26 @@ zone) replaces it with
 
 from __future__ import annotations
 
-import dataclasses
-import functools
-import math
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.config import (
-    ENV_OWNED,
-    PRESETS,
-    EnvConfig,
-    ReynoldsParams,
-    env_quantities,
-    reynolds_params,
-)
 from boids_env.observations import ObservationLayout
 from boids_env.policies import kernels
 from boids_env.policies.base import BatchPolicy
+from boids_env.policies.reynolds_params import (
+    DEFAULT_TIMING,
+    ENV_OWNED,
+    PRESETS,
+    ReynoldsParams,
+    Timing,
+    bound_params,
+    reynolds_params,
+    sized_params,
+    turn_time,
+    within,
+)
 from boids_env.world.scenario import holding
 
 FloatArray = npt.NDArray[np.float64]
@@ -259,12 +260,12 @@ def walls_then_robots(walls: FloatArray, robots: FloatArray, limit: float) -> Fl
 
 
 def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
-                     p: ReynoldsParams, robots: FloatArray | None = None
-                     ) -> tuple[FloatArray, dict[str, FloatArray]]:
-    """Combines the rule forces into the commanded velocity; returns it and weighted forces.
-    An ``obstacle`` force, when given, is served first (the others share the rest of
-    ``max_force``); ``robots`` (other robots as obstacle points, ``walls_first``) after the
-    walls' and people's part of it."""
+                     p: ReynoldsParams, robots: FloatArray | None = None,
+                     dt: float = DEFAULT_TIMING.dt) -> tuple[FloatArray, dict[str, FloatArray]]:
+    """Combines the rule forces into the commanded velocity, integrated over the control
+    period ``dt`` (s); returns it and weighted forces. An ``obstacle`` force, when given, is
+    served first (the others share the rest of ``max_force``); ``robots`` (other robots as
+    obstacle points, ``walls_first``) after the walls' and people's part of it."""
     weights = {"separation": p.separation_weight, "cohesion": p.cohesion_weight,
                "alignment": p.alignment_weight, "leader": p.leader_weight}
     weighted = {name: weights[name] * forces[name] for name in RULES}
@@ -280,7 +281,7 @@ def reynolds_command(forces: dict[str, FloatArray], own_velocity: FloatArray,
         rest = clip_norm_each(sum(weighted[name] for name in RULES), left)
         pushed = np.any(first != 0.0, axis=1)[:, None]
         total = np.where(pushed, first + rest, total)  # untouched rows: the study's sum
-    command = clip_norm(own_velocity + total / p.mass * p.dt, p.max_speed)
+    command = clip_norm(own_velocity + total / p.mass * dt, p.max_speed)
     return command, weighted
 
 
@@ -302,13 +303,7 @@ def robot_avoidance_force(slots: FloatArray, own_velocity: FloatArray, radius: f
     surface = rel * (np.maximum(dist - 2 * radius, 1e-6) / np.where(dist > 0, dist, 1.0))[
         ..., None]
     closing = own_velocity[:, None, :] - vel
-    return obstacle_force(surface, valid, closing, _within(p, p.robot_avoidance))
-
-
-@functools.lru_cache(maxsize=16)
-def _within(p: ReynoldsParams, distance: float) -> ReynoldsParams:
-    """``p`` with ``obstacle_distance`` set to ``distance`` (cached: built once per policy)."""
-    return dataclasses.replace(p, obstacle_distance=distance)
+    return obstacle_force(surface, valid, closing, within(p, p.robot_avoidance))
 
 
 def route_leader_force(obs: FloatArray, layout: ObservationLayout) -> FloatArray:
@@ -328,86 +323,15 @@ def clip_norm_each(x: FloatArray, limits: FloatArray) -> FloatArray:
     return x * scale[..., None]
 
 
-UNITS = {"dt": "s", "startup_time": "s", "max_speed": "m/s", "horizon": "m"}
-EXACT = ("dt", "startup_time")
-"""Quantities a bound controller must share with the env: its period and start-up."""
-
-
-def bound_params(params: ReynoldsParams, own: frozenset[str] | set[str], config: EnvConfig
-                 ) -> ReynoldsParams:
-    """``params`` bound to an env of ``config``: every quantity the env owns taken from it,
-    except ``max_speed`` and ``horizon`` in ``own`` (the controller's own choice, at most the
-    env's: it cannot command faster than the robots go nor see farther than the sensors).
-    ``dt`` or ``startup_time`` in ``own`` must equal the env's. A conflict is a
-    ``ValueError`` naming both values."""
-    env = env_quantities(config)
-    changes = {}
-    for name, value in env.items():
-        mine = getattr(params, name)
-        if name in own and (mine != value if name in EXACT else mine > value):
-            unit = UNITS[name]
-            need = "equal" if name in EXACT else "be at most"
-            raise ValueError(
-                f"the Reynolds policy's {name}={mine:g} {unit} conflicts with the env's "
-                f"{name}={value:g} {unit}: bound to an env, the policy's {name} must {need} "
-                f"the env's; give {name} to the env (--set {name}={mine:g}, a suite field) or "
-                f"leave it out of the policy's parameters")
-        if name not in own and mine != value:
-            changes[name] = value
-    return dataclasses.replace(params, **changes) if changes else params
-
-
 ARENA_STATIC_SLOTS = 4
 """Static slots a route-following preset that always avoids obstacles (``scaled``) asks
 the env for, so that it senses the study's arena walls too (any other scene has 4)."""
-STUDY_RADIUS = 0.036
-"""The study's Sphero's radius (m): the size the distances of a preset are given for."""
-
-
-def turn_time(world: Any) -> float:
-    """Seconds a robot of config section ``world`` needs to turn a quarter turn from rest:
-    π/2 at its top turn rate plus the ramp to it at its turn acceleration; 0 for a holonomic
-    robot (it needs no turn to change its direction of motion)."""
-    if world.drive == "holonomic" or world.max_turn_rate is None:
-        return 0.0
-    rate = float(world.max_turn_rate)
-    ramp = rate / float(world.max_turn_acceleration) if world.max_turn_acceleration else 0.0
-    return (math.pi / 2) / rate + ramp
-
-
-def sized_params(params: ReynoldsParams, radius: float, turn: float = 0.0,
-                 sized_for: tuple[float, float] = (STUDY_RADIUS, 0.0)) -> ReynoldsParams:
-    """``params``, whose distances are for robots of radius ``sized_for[0]`` and look-ahead
-    for robots turning a quarter turn in ``sized_for[1]`` s (the study's holonomic Sphero
-    unless given), sized for robots of ``radius`` (m) that turn in ``turn`` s
-    (``scale_to_robot``, :func:`turn_time`): centre-to-centre distances
-    (``desired_separation``, ``personal_space`` when on) 2·Δradius longer, the
-    centre-to-surface ``obstacle_distance`` Δradius longer, so the free gaps stay the same,
-    and the ``obstacle_lookahead`` and the leader's path ahead (``path_time``) Δturn longer,
-    so a robot that must turn before it can steer away starts that much earlier; the
-    ``personal_space`` also grows by ``max_speed`` × Δturn, the way a leader at the robots'
-    top speed comes while a follower turns to step aside. The strip's half-width
-    ``path_width`` (when on) is centre to centre: 2·Δradius wider. ``params`` itself for the
-    same robot."""
-    grow = radius - sized_for[0]
-    slower = turn - sized_for[1]
-    if grow == 0.0 and slower == 0.0:
-        return params
-    return dataclasses.replace(
-        params, desired_separation=max(params.desired_separation + 2 * grow, 0.0),
-        personal_space=max(params.personal_space + 2 * grow + params.max_speed * slower, 0.0)
-        if params.personal_space else 0.0,
-        obstacle_distance=max(params.obstacle_distance + grow, 1e-3),
-        obstacle_lookahead=max(params.obstacle_lookahead + slower, 0.0),
-        path_width=max(params.path_width + 2 * grow, 0.0) if params.path_width else 0.0,
-        path_time=max(params.path_time + slower, 0.0))
-
-
 class ReynoldsPolicy(BatchPolicy):
     """Reynolds + leader controller of the study, reading observations only.
 
     ``ReynoldsPolicy(preset="paper", **overrides)``: the ``paper`` (Table IV) or ``boids_ros``
-    (original code) parameters, any :class:`~boids_env.config.ReynoldsParams` field
+    (original code) parameters, any
+    :class:`~boids_env.policies.reynolds_params.ReynoldsParams` field
     overridden (``leader_weight=1.2``). After each :meth:`act`, :attr:`forces` holds each
     rule's weighted force per follower (for drawing).
 
@@ -416,11 +340,11 @@ class ReynoldsPolicy(BatchPolicy):
     avoids obstacles in any scene but the study's arena, and it takes the env's control
     period, start-up time, robots' top speed and sensing horizon (see :meth:`bind`). Unbound,
     it reads the study-era layouts (neighbour slots, at most a wall slot) from the
-    observation's size, and its own parameters.
+    observation's size, its own parameters and ``timing``.
     """
 
     def __init__(self, preset: str = "paper", *, layout: ObservationLayout | None = None,
-                 **overrides: Any) -> None:
+                 timing: Timing = DEFAULT_TIMING, **overrides: Any) -> None:
         self.params = reynolds_params(preset, **overrides)
         # the parameters before sizing for the robot (scale_to_robot sizes these at each bind)
         self._unsized = self.params
@@ -436,6 +360,9 @@ class ReynoldsPolicy(BatchPolicy):
         self.avoid = bool(self.params.obstacle_avoidance) and bool(layout and layout.static)
         self.pedestrian_radius = 0.22
         self.robot_radius = 0.036
+        self.timing = Timing(*timing)
+        """The control period and start-up hold it acts on: the env's, read at :meth:`bind`;
+        unbound, ``timing`` (the study's 10 Hz and 2 s unless given)."""
         self._steps = 0
         if self.params.follow_route:  # the route preset reads the env's route sensing
             self.env_fields = {"route_sensing": True}
@@ -445,11 +372,12 @@ class ReynoldsPolicy(BatchPolicy):
     def bind(self, env: Any) -> None:
         """Reads ``env``'s observation layout, whether its scene is the study's arena (any
         object with ``layout`` and ``config``/``episode_config``: a BoidsEnv, the ROS
-        controller) and the quantities the env owns (:data:`~boids_env.config.ENV_OWNED`):
-        the control period ``dt`` and the ``startup_time`` always (one given otherwise is a
-        ``ValueError``), the robots' top speed ``max_speed`` and the sensing ``horizon``
-        unless the controller sets its own (given, or the preset's: ``boids_ros``' 0.75 m),
-        which may not exceed the env's. The study's case: the same values either way."""
+        controller), its timing (:attr:`timing`: the control period ``dt`` and the
+        ``startup_time``) and the quantities the env owns
+        (:data:`~boids_env.policies.reynolds_params.ENV_OWNED`): the robots' top speed
+        ``max_speed`` and the sensing ``horizon`` unless the controller sets its own (given,
+        or the preset's: ``boids_ros``' 0.75 m), which may not exceed the env's. The study's
+        case: the same values either way."""
         self.layout = env.layout
         config = getattr(env, "episode_config", None) or env.config
         auto = config.world.scene != "arena"
@@ -457,6 +385,7 @@ class ReynoldsPolicy(BatchPolicy):
         self.avoid = bool(self.layout.static) and (auto if wanted is None else wanted)
         self.pedestrian_radius = config.scenario.person_radius
         self.robot_radius = config.world.robot_radius
+        self.timing = Timing.of(config)
         self._unsized = bound_params(self._unsized, self._own, config)
         self.params = self._unsized
         if self.params.scale_to_robot:
@@ -474,7 +403,8 @@ class ReynoldsPolicy(BatchPolicy):
             raise ValueError(f"observations of size {obs.shape[1:]} do not fit the bound layout "
                              f"({layout.size} values); bind the policy to this env")
         p = self.params
-        held = holding(self._steps * p.dt, p.startup_time)
+        dt, startup_time = self.timing
+        held = holding(self._steps * dt, startup_time)
         self._steps += 1
         people = bool(layout.pedestrians)
         crowding = p.robot_avoidance > 0
@@ -528,5 +458,5 @@ class ReynoldsPolicy(BatchPolicy):
                 robots = push
             else:
                 forces[OBSTACLE] = forces[OBSTACLE] + push if OBSTACLE in forces else push
-        command, self.forces = reynolds_command(forces, own, p, robots)
+        command, self.forces = reynolds_command(forces, own, p, robots, dt)
         return command.astype(np.float32)

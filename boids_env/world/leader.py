@@ -1,8 +1,8 @@
-"""Leader trajectories: the paper's square and the opt-in paths of DESIGN section 2.
+"""Leader paths: the paper's square and the opt-in ones (circle, figure-eight, waypoints,
+random waypoints, a leader driven from outside).
 
-A leader is a small state machine: ``command(t, position)`` returns the velocity (m/s, world
-frame) to command at time ``t`` given the leader's measured position, and ``finished`` tells
-whether its path is done. Before ``startup_time`` every leader commands zero.
+Each is a :class:`~boids_env.world.leader_base.Leader` (the small state machine every leader
+is: ``command(t, position)`` and ``finished``); :func:`make_leader` builds the scenario's.
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.vectors import as_velocities, clip_speed, sin_cos, times_matrix
+from boids_env.vectors import as_velocities, clip_speed, sin_cos
+from boids_env.world.leader_base import Leader as Leader
 from boids_env.world.scenario import CURVE_SPEED_FACTOR, LEADER_MAX_SPEED, scene_matrix
 
 if TYPE_CHECKING:
@@ -25,100 +26,6 @@ Vec = npt.NDArray[np.float64]
 
 PAPER_SQUARE = ((0.0, 4.0), (-4.0, 4.0), (-4.0, -4.0), (4.0, -4.0), (4.0, 4.0), (-4.0, 4.0))
 """The study's leader targets (m), driven from (0, 0) one axis at a time."""
-
-
-class Leader:
-    """Base class: zero command until the start-up time, then the path's own command.
-
-    Subclasses script their path in its own frame (``_move``); ``transform`` (from
-    :func:`boids_env.world.scenario.scene_matrix`) places that frame in the world, so a rotated or
-    mirrored square is exactly the study's square turned.
-    """
-
-    def __init__(self, speed: float, startup_time: float, transform: Vec | None = None,
-                 origin: npt.ArrayLike = (0.0, 0.0),
-                 pauses: tuple[tuple[float, float], ...] = ()) -> None:
-        self.speed = speed
-        self.startup_time = startup_time
-        self.finished = False
-        self.pauses = tuple(pauses)
-        """Standstills ((when, how long), ...) in s of driving time (``leader_pauses``)."""
-        turn = np.eye(2) if transform is None else np.asarray(transform, dtype=float)
-        self.transform = turn
-        # The identity is skipped, not multiplied: x·1 + y·0 turns −0.0 into 0.0, which flips
-        # a heading of exactly ±180° and so the study's unwrapped alignment rule.
-        self._turned = not np.array_equal(turn, np.eye(2))
-        self.origin = np.asarray(origin, dtype=float).reshape(2)
-        """Where the path's own frame starts in the world (the leader's start)."""
-        self._moved = bool(np.any(self.origin != 0.0))
-
-    def command(self, t: float, position: Vec) -> Vec:
-        """Velocity command (m/s) at time ``t`` (s since reset) for the measured ``position``."""
-        if t < self.startup_time - 1e-9 or self.finished:
-            return np.zeros(2)
-        driving = self.driving_time(t - self.startup_time)
-        if driving is None:
-            return np.zeros(2)
-        local = np.asarray(position, dtype=float)
-        if self._moved:
-            local = local - self.origin
-        if not self._turned:
-            return self._move(driving, local)
-        turned = self._move(driving, times_matrix(local, self.transform))  # T⁻¹ = Tᵀ
-        return times_matrix(turned, self.transform.T)
-
-    def driving_time(self, elapsed: float) -> float | None:
-        """The path's own clock ``elapsed`` s after the start-up: the time spent driving,
-        pauses left out; None while the leader stands in a pause."""
-        for when, length in self.pauses:
-            if elapsed < when:
-                break
-            if elapsed < when + length:
-                return None
-            elapsed -= length
-        return elapsed
-
-    def _move(self, t: float, position: Vec) -> Vec:
-        raise NotImplementedError
-
-    @property
-    def nominal_duration(self) -> float | None:
-        """Time (s) the path takes at ``speed`` from the end of start-up, pauses included;
-        None if unbounded."""
-        driving = self._driving_duration()
-        if driving is None:
-            return None
-        return driving + sum(length for _, length in self.pauses) if self.pauses else driving
-
-    def _driving_duration(self) -> float | None:
-        """Time (s) the path takes at ``speed`` without pauses; None if unbounded."""
-        return None
-
-    def reference_path(self) -> Vec | None:
-        """The scripted path as a polyline (M, 2) in metres, world frame (None: no script, e.g.
-        external), for the leader's path deviation."""
-        local = self._local_path()
-        if local is None:
-            return None
-        world = times_matrix(local, self.transform.T) if self._turned else local
-        return world + self.origin if self._moved else world
-
-    def _local_path(self) -> Vec | None:
-        return None
-
-    @property
-    def initial_heading(self) -> float:
-        """Direction (rad, world frame) of the path's first move: where the leader faces at
-        the start (the leader frame of the observations starts there)."""
-        path = self._local_path()
-        direction = np.array([0.0, 1.0])
-        if path is not None:
-            steps = np.diff(path, axis=0)
-            moving = np.flatnonzero(np.hypot(steps[:, 0], steps[:, 1]) > 1e-9)
-            if len(moving):
-                direction = steps[moving[0]]
-        x, y = times_matrix(direction, self.transform.T)
-        return math.atan2(y, x)
 
 
 class WaypointLeader(Leader):
@@ -296,11 +203,9 @@ def preview_path(scenario: ScenarioConfig, dt: float | None = None) -> Vec | Non
     """The leader's scripted path (M, 2, world frame) without drawing anything: None for a
     random or external path; a recorded walk's samples for ``leader="trajectory"`` (a person
     walks the path's corners: its path is the robot's)."""
-    if scenario.leader == "trajectory":
-        from boids_env.world.walks import read_walk
-
-        assert scenario.leader_trajectory is not None
-        return np.array(read_walk(scenario.leader_trajectory)[1])
+    fixed = scenario.leader_kind.preview_path(scenario)
+    if fixed is not None:
+        return fixed
     if scenario.path in ("random_waypoints", "external"):
         return None
     return make_leader(scenario, np.random.default_rng(0), dt).reference_path()

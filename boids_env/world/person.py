@@ -18,8 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.world.leader import Leader
-from boids_env.world.walks import read_walk
+from boids_env.world.leader_base import Leader
 
 if TYPE_CHECKING:
     from boids_env.world.people import People
@@ -73,48 +72,6 @@ class PersonLeader(Leader):
         return self.path.copy()
 
 
-class TrajectoryLeader(Leader):
-    """Replays a recorded walk: at episode time t the leader is at the walk's position at t
-    (rows interpolated linearly; before the first row at the first, after the last at the
-    last, and then finished).
-
-    Args:
-        times: (M,) strictly increasing sample times (s), the episode's clock.
-        points: (M, 2) positions (m, world frame).
-        dt: the control period (s).
-    """
-
-    def __init__(self, times: FloatArray, points: FloatArray, dt: float) -> None:
-        super().__init__(0.0, 0.0)
-        self.times = np.asarray(times, dtype=float)
-        self.points = np.asarray(points, dtype=float).reshape(-1, 2)
-        self.dt = dt
-
-    def position_at(self, t: float) -> FloatArray:
-        """The walk's position at time ``t`` (s), linearly interpolated."""
-        return np.array([np.interp(t, self.times, self.points[:, 0]),
-                         np.interp(t, self.times, self.points[:, 1])])
-
-    def command(self, t: float, position: FloatArray) -> FloatArray:
-        """The velocity that takes the leader's body to the walk's position at ``t + dt``."""
-        nxt = t + self.dt
-        if nxt >= self.times[-1] - 1e-9:
-            self.finished = True
-        target = self.position_at(nxt)
-        return np.array([(target[0] - position[0]) / self.dt,
-                         (target[1] - position[1]) / self.dt])
-
-    @property
-    def nominal_duration(self) -> float:
-        return float(self.times[-1])
-
-    def reference_path(self) -> FloatArray:
-        return self.points.copy()
-
-    def _local_path(self) -> FloatArray:
-        return self.points.copy()
-
-
 def make_person(scenario: ScenarioConfig, scene: Scene, leader: Leader,
                 initial: FloatArray, rng: np.random.Generator, dt: float
                 ) -> tuple[Leader, People | None]:
@@ -126,12 +83,9 @@ def make_person(scenario: ScenarioConfig, scene: Scene, leader: Leader,
     from boids_env.world.people import People
 
     sc = scenario
-    walk = None
-    if sc.leader == "trajectory":
-        assert sc.leader_trajectory is not None
-        walk = read_walk(sc.leader_trajectory)
-        leader = TrajectoryLeader(*walk, dt)
-    walking = sc.leader == "person" and sc.path != "external"
+    kind = sc.leader_kind
+    leader = kind.leader(sc, leader, dt)
+    walking = kind.walks(sc)
     if not walking and not sc.crowd:
         return leader, None
     path = leader.reference_path() if walking else None
@@ -142,7 +96,7 @@ def make_person(scenario: ScenarioConfig, scene: Scene, leader: Leader,
                     goals=goals, speed=sc.leader_speed, gait_variation=sc.gait_variation,
                     goal_pause=0.0 if curve else sc.goal_pause, startup_time=sc.startup_time,
                     crowd=sc.crowd, crowd_speed=sc.crowd_speed, radius=sc.person_radius,
-                    keep_clear=initial, walk=walk)
+                    keep_clear=initial, walk=kind.walk(sc))
     if walking:
         assert path is not None
         leader = PersonLeader(people, np.vstack([initial[:1], goals]), sc.leader_speed,

@@ -47,7 +47,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -58,9 +58,6 @@ from boids_env import kernels
 
 FloatArray = npt.NDArray[np.float64]
 
-DRIVES = ("holonomic", "unicycle")
-"""Drives: ``holonomic`` (the study's omnidirectional disc) or ``unicycle`` (moves along a
-heading that turns at a bounded rate)."""
 VELOCITY_LAWS = ("turn_and_drive", "roll")
 """How a unicycle's driver turns a world-frame velocity command into (v, ω) (module doc)."""
 ACTIONS = ("velocity", "unicycle")
@@ -132,13 +129,6 @@ PRESETS: dict[str, RobotPreset] = {
     "gritsbot": RobotPreset(0.055, 0.25, 0.2, 1.0, "unicycle", 2 * 0.2 / 0.11, None),
 }
 """Robot presets by name (``robot=NAME``); ``sphero`` is the study's and the default."""
-
-
-def preset_fields(name: str) -> dict[str, Any]:
-    """The config fields robot preset ``name`` sets; ``ValueError`` naming the presets."""
-    if name not in PRESETS:
-        raise ValueError(f"robot must be one of {sorted(PRESETS)}, got {name!r}")
-    return PRESETS[name].fields()
 
 
 def scaled_scenario(max_speed: float, robot_radius: float) -> dict[str, float]:
@@ -225,6 +215,7 @@ class WorldConfig(Protocol):
     robot_mass: float
     drive_force: float
     dt: float
+    substeps: int
     drive: str
     max_turn_rate: float | None
     max_turn_acceleration: float | None
@@ -239,6 +230,7 @@ class World(Protocol):
     space: pymunk.Space
     n: int
     velocities: FloatArray
+    heading_vectors: FloatArray | None
     _write_velocities: FloatArray
     _schedule: list[float]
 
@@ -254,15 +246,68 @@ class World(Protocol):
 class RobotModel:
     """A drive: its bodies, its driver's law and its motion over one control period.
 
+    Everything that differs between drives is answered here (the world, the env, the
+    observations, recordings and ROS ask the model or its class, never the drive's name):
+    whether robots have a heading, the checks of its config fields, how a command becomes
+    motion, and the heading state a snapshot or odometry reports. A new drive is a subclass
+    registered in :data:`DRIVES` (:func:`register_drive`).
+
     Args:
         config: the world section of the env config.
     """
 
-    has_heading = False
+    name: ClassVar[str] = ""
+    """The drive's name, the value of ``WorldConfig.drive`` that selects it."""
+    has_heading: ClassVar[bool] = False
     """Whether robots of this model have a heading (observations, recordings, ROS)."""
+    walks_with_people: ClassVar[bool] = True
+    """Whether people (a person leader, a crowd) can share the space with these robots: a
+    model that steers its control bodies within a control period cannot (a person's body
+    does not take those steps)."""
 
     def __init__(self, config: WorldConfig) -> None:
         self.config = config
+
+    @classmethod
+    def check_config(cls, config: WorldConfig) -> None:
+        """Refuses (``ValueError``, naming the fields) config values this drive cannot run
+        with; called once when the config is built. None for a holonomic robot."""
+
+    @classmethod
+    def quarter_turn_time(cls, config: WorldConfig) -> float:
+        """Seconds a robot of ``config`` needs to turn a quarter turn from rest; 0 for a
+        robot that needs no turn to change its direction of motion."""
+        return 0.0
+
+    def command(self, world: World, commanded: FloatArray | None, executed: FloatArray | None,
+                native: FloatArray | None) -> tuple[FloatArray, FloatArray | None, FloatArray]:
+        """A control period's commands, before the world advances: the world-frame command
+        (N, 2) as the world records it, the native commands as sent (None for a drive without
+        them) and the native commands to execute (what :meth:`advance` takes).
+
+        Args:
+            world: the world about to advance.
+            commanded: (N, 2) world-frame velocity commands as sent.
+            executed: (N, 2) world-frame velocities executed instead (realism), or None.
+            native: (N, 2) commands in the driver's own terms instead of ``commanded``.
+        """
+        sent = np.array(commanded, dtype=float)
+        return sent, None, sent if executed is None else executed
+
+    def initial_native(self, n: int) -> FloatArray | None:
+        """The native commands before the first step (None for a drive without them)."""
+
+    def odometry_headings(self) -> FloatArray | None:
+        """(N, 2) unit heading vectors as odometry reports them; None without headings."""
+
+    def headings(self) -> FloatArray | None:
+        """(N,) headings (rad, in [−π, π]); None without headings."""
+
+    def turn_rates(self) -> FloatArray | None:
+        """(N,) turn rates (rad/s); None without headings."""
+
+    def quaternions(self) -> FloatArray | None:
+        """(N, 2) orientations as (z, w) of a rotation about z; None without headings."""
 
     def add_bodies(self, space: pymunk.Space, positions: FloatArray,
                    leader: tuple[float, float, float] | None = None
@@ -319,6 +364,8 @@ class RobotModel:
 class Holonomic(RobotModel):
     """The study's omnidirectional disc: the native command is the world-frame velocity."""
 
+    name = "holonomic"
+
     def advance(self, world: World, native: FloatArray) -> None:
         n = world.n
         w = world._write_velocities
@@ -338,7 +385,67 @@ class Unicycle(RobotModel):
     counter-clockwise).
     """
 
+    name = "unicycle"
     has_heading = True
+    walks_with_people = False
+
+    @classmethod
+    def check_config(cls, config: WorldConfig) -> None:
+        """A unicycle needs its top turn rate; a physics substep may turn it at most
+        :data:`MAX_TURN_PER_SUBSTEP`; its heading gain may not overshoot within a period."""
+        if config.max_turn_rate is None:
+            raise ValueError("drive='unicycle' needs max_turn_rate (rad/s), e.g. 2.84 for a "
+                             "TurtleBot3 Burger (or choose robot=...)")
+        turn = config.max_turn_rate * config.dt / config.substeps
+        if turn > MAX_TURN_PER_SUBSTEP:
+            raise ValueError(
+                f"a unicycle may turn at most {MAX_TURN_PER_SUBSTEP} rad per physics substep; "
+                f"max_turn_rate={config.max_turn_rate:g} rad/s × dt={config.dt:g} s / "
+                f"substeps={config.substeps} turns {turn:.3g} rad: use substeps >= "
+                f"{math.ceil(config.max_turn_rate * config.dt / MAX_TURN_PER_SUBSTEP)}")
+        gain = config.max_turn_rate if config.heading_gain is None else config.heading_gain
+        if gain * config.dt > 1.0:
+            raise ValueError(
+                f"heading_gain × dt must be at most 1 (the heading would overshoot its command "
+                f"within a control period), got {gain:g} 1/s × {config.dt:g} s")
+
+    @classmethod
+    def quarter_turn_time(cls, config: WorldConfig) -> float:
+        """π/2 at the top turn rate plus the ramp to it at the turn acceleration."""
+        if config.max_turn_rate is None:
+            return 0.0
+        rate = float(config.max_turn_rate)
+        accel = config.max_turn_acceleration
+        ramp = rate / float(accel) if accel else 0.0
+        return (math.pi / 2) / rate + ramp
+
+    def command(self, world: World, commanded: FloatArray | None, executed: FloatArray | None,
+                native: FloatArray | None) -> tuple[FloatArray, FloatArray | None, FloatArray]:
+        """The driver's law turns world-frame commands into (v, ω) (unless ``native`` gives
+        them); the recorded world-frame command is v along the heading the robot had when
+        commanded (what its ``cmd_vel`` says)."""
+        heading = world.heading_vectors
+        assert heading is not None
+        sent = np.array(native, dtype=float) if native is not None else self.native(
+            np.asarray(commanded, dtype=float), heading)
+        run = sent if executed is None else self.native(np.asarray(executed, dtype=float),
+                                                        heading)
+        return heading * sent[:, :1], sent, run
+
+    def initial_native(self, n: int) -> FloatArray | None:
+        return np.zeros((n, 2))
+
+    def odometry_headings(self) -> FloatArray | None:
+        return odometry_headings(self.vectors)
+
+    def headings(self) -> FloatArray | None:
+        return wrap_angles(self.theta)
+
+    def turn_rates(self) -> FloatArray | None:
+        return self.omega.copy()
+
+    def quaternions(self) -> FloatArray | None:
+        return quaternions(self.vectors)
 
     def __init__(self, config: WorldConfig) -> None:
         super().__init__(config)
@@ -460,6 +567,30 @@ _VELOCITY = batch.BodyFields.VELOCITY
 _ANGLE_VELOCITY = batch.BodyFields.ANGLE | batch.BodyFields.VELOCITY
 
 
+DRIVES: dict[str, type[RobotModel]] = {"holonomic": Holonomic, "unicycle": Unicycle}
+"""Drives by name (``WorldConfig.drive``): ``holonomic`` (the study's omnidirectional disc)
+and ``unicycle`` (moves along a heading that turns at a bounded rate)."""
+
+
+def register_drive(model: type[RobotModel]) -> type[RobotModel]:
+    """Adds a drive to :data:`DRIVES` under ``model.name`` (usable as a class decorator);
+    ``ValueError`` for a name that is empty or taken by another class."""
+    if not isinstance(model, type) or not issubclass(model, RobotModel):
+        raise TypeError(f"a drive is a RobotModel subclass, got {model!r}")
+    if not model.name or DRIVES.get(model.name, model) is not model:
+        raise ValueError(f"a drive needs a new name (its class's ``name``), got {model.name!r}; "
+                         f"taken: {sorted(DRIVES)}")
+    DRIVES[model.name] = model
+    return model
+
+
+def drive_model(name: str) -> type[RobotModel]:
+    """The model class of drive ``name``; ``ValueError`` naming the drives."""
+    if not isinstance(name, str) or name not in DRIVES:
+        raise ValueError(f"drive must be one of {tuple(DRIVES)}, got {name!r}")
+    return DRIVES[name]
+
+
 def make_model(config: WorldConfig) -> RobotModel:
     """The model of ``config.drive``."""
-    return {"holonomic": Holonomic, "unicycle": Unicycle}[config.drive](config)
+    return drive_model(config.drive)(config)

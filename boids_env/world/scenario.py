@@ -21,6 +21,7 @@ from boids_env.checks import number as _number
 from boids_env.checks import set_field as _set
 from boids_env.vectors import times_matrix
 from boids_env.world.layout import PAPER_LAYOUTS, follower_cells, grid_cells
+from boids_env.world.leader_kinds import LEADER_KINDS, LeaderKind, leader_kind
 
 __all__ = ["CURVE_SPEED_FACTOR", "LEADERS", "LEADER_MAX_SPEED", "PAPER_LAYOUTS", "PATHS",
            "ScenarioConfig",
@@ -34,9 +35,10 @@ CURVE_SPEED_FACTOR = 1.5
 """A curve-following leader may command up to this × ``leader_speed`` to regain its path."""
 PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "external")
 """Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
-LEADERS = ("robot", "person", "trajectory")
-"""Who leads: the study's robot (default), a person walked by the pedestrian model along the
-path (opt-in), or a recorded walk replayed from ``leader_trajectory`` (opt-in)."""
+LEADERS = tuple(LEADER_KINDS)
+"""Who leads (the built-in kinds of :mod:`~boids_env.world.leader_kinds`): the study's robot
+(default), a person walked by the pedestrian model along the path (opt-in), or a recorded
+walk replayed from ``leader_trajectory`` (opt-in)."""
 
 
 
@@ -166,9 +168,9 @@ class ScenarioConfig:
 
 
     def _check_people(self) -> None:
-        """The person and crowd fields (``leader`` ... ``crowd_speed``)."""
-        if self.leader not in LEADERS:
-            raise ValueError(f"leader must be one of {LEADERS}, got {self.leader!r}")
+        """The person and crowd fields (``leader`` ... ``crowd_speed``); the leader kind's
+        own checks, and the fields it fixes (a walk's start)."""
+        kind = leader_kind(self.leader)
         _set(self, "person_radius", _number("person_radius", self.person_radius, 0.05, 0.5,
                                             unit="m"))
         _set(self, "gait_variation", _number("gait_variation", self.gait_variation, 0.0, 0.5))
@@ -176,28 +178,20 @@ class ScenarioConfig:
         _set(self, "crowd", _integer("crowd", self.crowd, 0, 500))
         _set(self, "crowd_speed", _number("crowd_speed", self.crowd_speed, 0.0, 2.0,
                                           lo_open=True, unit="m/s"))
-        if self.leader != "trajectory":
-            if self.leader_trajectory is not None:
-                raise ValueError(f"leader_trajectory is a walk for leader='trajectory', but "
-                                 f"leader={self.leader!r}; give leader='trajectory' too")
-            return
-        if not isinstance(self.leader_trajectory, str) or not self.leader_trajectory:
-            raise ValueError(f"leader='trajectory' needs leader_trajectory, the path of a CSV "
-                             f"of t,x,y, got {self.leader_trajectory!r}")
-        from pathlib import Path
+        for name, value in kind.check(self).items():
+            _set(self, name, value)
 
-        from boids_env.world.walks import WALKS, read_walk
+    @property
+    def leader_kind(self) -> LeaderKind:
+        """The leader's kind (:mod:`~boids_env.world.leader_kinds`): what every caller asks
+        about who leads."""
+        return LEADER_KINDS[self.leader]
 
-        _, points = read_walk(self.leader_trajectory)
-        if self.leader_trajectory not in WALKS:
-            _set(self, "leader_trajectory", str(Path(self.leader_trajectory).resolve()))
-        _set(self, "start", (float(points[0][0]), float(points[0][1])))
-        if self.start_heading is None:
-            steps = points[1:] - points[0]
-            moving = np.flatnonzero(np.hypot(steps[:, 0], steps[:, 1]) > 1e-6)
-            if len(moving):
-                dx, dy = steps[moving[0]]
-                _set(self, "start_heading", math.degrees(math.atan2(dy, dx)))
+    @property
+    def leader_radius(self) -> float | None:
+        """The leader's body radius (m) when it is not a robot (a person, a walk); None for
+        the study's robot leader, which is a follower-sized robot."""
+        return self.leader_kind.radius(self)
 
 
 MAX_PAUSE = 3600.0

@@ -27,9 +27,9 @@ import pymunk
 import pymunk.batch as batch
 from scipy.spatial import cKDTree
 
-from boids_env.config import WorldConfig
+from boids_env.config.world import WorldConfig
 from boids_env.metrics import CONTACT_TOLERANCE
-from boids_env.world.robots import make_model, odometry_headings, quaternions, wrap_angles
+from boids_env.world.robots import make_model
 from boids_env.world.scene import Scene
 
 FloatArray = npt.NDArray[np.float64]
@@ -144,9 +144,10 @@ class World:
         crowd = np.zeros((0, 2)) if pedestrians is None else np.asarray(pedestrians, float)
         crowd = crowd.reshape(-1, 2)
         self.p = len(crowd)
-        if (person or self.p) and self.model.has_heading:
-            raise ValueError("a person leader and crowds walk among holonomic robots only; "
-                             "use robot='sphero' (or another holonomic robot) with people")
+        if (person or self.p) and not self.model.walks_with_people:
+            raise ValueError(f"a person leader and crowds walk among holonomic robots only "
+                             f"(drive={config.drive!r} steers within a control period); use "
+                             f"robot='sphero' (or another holonomic robot) with people")
         drive = math.inf if leader_kinematic else PERSON_DRIVE
         leader = (PERSON_MASS, leader_radius, drive) if person else None
         self._robots, self._controls = self.model.add_bodies(self.space, start, leader)
@@ -159,8 +160,7 @@ class World:
         self._write_velocities = np.zeros((2 * self.n + 2 * self.p + 1, 2))
         self._pedestrian_walk: FloatArray | float = 0.0
         self.commanded = np.zeros((self.n, 2))
-        self.native: FloatArray | None = np.zeros((self.n, 2)) if self.model.has_heading \
-            else None
+        self.native: FloatArray | None = self.model.initial_native(self.n)
         self.positions = start.copy()
         self.velocities = np.zeros((self.n, 2))
         self.pedestrian_positions = crowd.copy()
@@ -237,8 +237,7 @@ class World:
             crowd = data[2 * self.n : 2 * self.n + self.p]  # then their control bodies
             self.pedestrian_positions = crowd[:, :2].copy()
             self.pedestrian_velocities = crowd[:, 2:].copy()
-        self._heading_vectors = (odometry_headings(self.model.vectors)
-                                 if self.model.has_heading else None)
+        self._heading_vectors = self.model.odometry_headings()
 
     def step(self, commanded: FloatArray | None, executed: FloatArray | None = None,
              pedestrian_velocities: FloatArray | None = None, *,
@@ -258,19 +257,11 @@ class World:
         it): as sent for the holonomic robots; for robots with a heading, what their
         ``cmd_vel`` says: v along the heading they had when commanded.
         """
-        model = self.model
         self._pedestrian_walk = 0.0 if pedestrian_velocities is None else pedestrian_velocities
-        if not model.has_heading:
-            self.commanded = np.array(commanded, dtype=float)
-            model.advance(self, self.commanded if executed is None else executed)
-        else:
-            heading = self.heading_vectors
-            sent = np.array(native, dtype=float) if native is not None else model.native(
-                np.asarray(commanded, dtype=float), heading)
+        self.commanded, sent, run = self.model.command(self, commanded, executed, native)
+        if sent is not None:
             self.native = sent
-            self.commanded = heading * sent[:, :1]
-            model.advance(self, sent if executed is None else model.native(
-                np.asarray(executed, dtype=float), heading))
+        self.model.advance(self, run)
         self.steps += 1
         self._refresh()
 
@@ -319,14 +310,12 @@ class World:
     @property
     def headings(self) -> FloatArray | None:
         """(N,) headings (rad, in [−π, π]); None for robots without a heading."""
-        if not self.model.has_heading:
-            return None
-        return wrap_angles(self.model.theta)
+        return self.model.headings()
 
     @property
     def angular_velocities(self) -> FloatArray | None:
         """(N,) turn rates (rad/s); None for robots without a heading."""
-        return self.model.omega.copy() if self.model.has_heading else None
+        return self.model.turn_rates()
 
     @property
     def time(self) -> float:
@@ -348,4 +337,4 @@ class World:
                         self.commanded.copy(), pairs, walls, self.headings,
                         self.angular_velocities,
                         None if self.native is None else self.native.copy(),
-                        quaternions(self.model.vectors) if self.model.has_heading else None)
+                        self.model.quaternions())

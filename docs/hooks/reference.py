@@ -173,7 +173,8 @@ def _default_text(value: Any) -> str:
 
 def config_sections() -> list[tuple[str, type, str]]:
     """(title, class, how it is set) of every config dataclass the user sets."""
-    from boids_env.config import EnvConfig, ReynoldsParams
+    from boids_env.config import EnvConfig
+    from boids_env.policies.reynolds_params import ReynoldsParams
     from boids_env.train.config import TrainConfig
 
     env = EnvConfig()
@@ -187,8 +188,10 @@ def config_sections() -> list[tuple[str, type, str]]:
 _HOW = {
     "env": "Set these by their flat names: `BoidsEnv(robots=19, leader_speed=0.6)`, "
            "`EnvConfig.from_kwargs(...)`, `boids run --set FIELD=VALUE`, or a suite's case.",
-    "reynolds": "Set these with `reynolds_params(preset, **overrides)` "
-                "(presets: `boids_env.config.PRESETS`) or `ReynoldsPolicy(params=...)`.",
+    "reynolds": "Set these with `reynolds_params(preset, **overrides)` (presets: "
+                "`boids_env.policies.reynolds_params.PRESETS`) or "
+                "`ReynoldsPolicy(preset, **overrides)`; the controller's timing (`dt`, "
+                "`startup_time`) is the env's.",
     "train": "Set these in a training TOML file (top level or a `[train]` table: `boids "
              "train --config FILE.toml`) or with `boids train`'s flags.",
 }
@@ -356,7 +359,7 @@ def observations_page() -> str:
 # --------------------------------------------------------------------------- model cards
 @page("reference/models.md")
 def models_page() -> str:
-    from boids_env.policies.cards import LEADER_WORDS
+    from boids_env.policies.cards import leader_words
     from boids_env.policies.registry import MODELS, shipped_cards
 
     cards = shipped_cards()
@@ -377,7 +380,7 @@ def models_page() -> str:
         rows.append((code(name), code(path.name), cell(card.summary),
                      cell(card.scene_words()), "{}–{}".format(*card.group_sizes),
                      "{:g}–{:g}".format(*card.leader_speeds),
-                     cell(", ".join(LEADER_WORDS.get(k, k) for k in card.leaders)
+                     cell(", ".join(leader_words(k) for k in card.leaders)
                           + ("; stands still" if card.standstills else "")),
                      str(max(card.crowds)), "on" if card.safety_filter else "off",
                      str(card.layout.size if card.layout else "—")))

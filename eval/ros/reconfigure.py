@@ -5,7 +5,8 @@ catkin build time; ``dynamic_reconfigure.server.Server`` then only reads that mo
 attributes ``config_description`` (the parameter tree), ``defaults``, ``min``, ``max``,
 ``level`` and ``type``. :func:`config_type` builds exactly those attributes in memory, in the
 generator's format (one ``Default`` group, ``double`` parameters), from
-:class:`~boids_env.config.ReynoldsParams`. So the node serves the standard services and topics
+:class:`~boids_env.policies.reynolds_params.ReynoldsParams`. So the node serves the standard
+services and topics
 (``~set_parameters``, ``~parameter_descriptions``, ``~parameter_updates``): ``rosrun
 dynamic_reconfigure dynparam set``, rqt_reconfigure and ``dynamic_reconfigure.client`` all work,
 and no build step or generated file exists. Pure Python: no ROS import here.
@@ -17,7 +18,7 @@ from dataclasses import asdict, replace
 from types import SimpleNamespace
 from typing import Any
 
-from boids_env.config import ReynoldsParams
+from boids_env.policies.reynolds_params import ReynoldsParams
 
 TUNABLE: dict[str, tuple[float, float | None, str]] = {
     "separation_weight": (0.0, 100.0, "weight of the separation rule"),

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from boids_env import checks
-from boids_env.config import EnvConfig, ReynoldsParams, WorldConfig
+from boids_env.config import EnvConfig, WorldConfig
 from boids_env.observations import BLOCKS, specs
+from boids_env.policies.reynolds_params import ReynoldsParams
 from boids_env.train.cli import build_parser
 from boids_env.train.config import TrainConfig
 from boids_env.world.realism import RealismConfig

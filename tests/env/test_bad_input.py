@@ -7,7 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
-from boids_env import EnvConfig, parallel_env, reynolds_params
+from boids_env import EnvConfig, parallel_env
+from boids_env.policies.reynolds_params import reynolds_params
 from boids_env.recording import Recording
 
 

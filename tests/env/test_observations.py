@@ -101,11 +101,12 @@ def test_wall_slot_points_at_the_nearest_wall_within_the_horizon():
     assert obs[0] in parallel_env(robots=4, sense_walls=True).observation_space("follower_1")
     # the Reynolds policy reads such observations too (it ignores the wall slot)
     from boids_env.policies import ReynoldsPolicy
+    from boids_env.policies.reynolds_params import Timing
 
     plain = EnvConfig.from_kwargs(robots=4)
     without = ob.Observer(plain)
     without.reset(None)
-    policy, twin = ReynoldsPolicy(startup_time=0), ReynoldsPolicy(startup_time=0)
+    policy, twin = (ReynoldsPolicy(timing=Timing(0.1, 0.0)) for _ in range(2))
     np.testing.assert_array_equal(policy.act_batch(obs), twin.act_batch(without(pos,
                                                                                 np.zeros((4, 2)))))
 

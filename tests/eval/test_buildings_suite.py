@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from boids_env.config import EnvConfig, reynolds_params
+from boids_env.config import EnvConfig
 from boids_env.environment import BoidsEnv
 from boids_env.eval.suites import BUILDING_SEEDS, BUILDINGS, DOORWAY_STOPS, SUITES
+from boids_env.policies.reynolds_params import reynolds_params
 from boids_env.world.floorplans import doorways
 
 

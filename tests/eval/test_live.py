@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from boids_env.config import reynolds_params
 from boids_env.eval.live import LiveControls, run_live
+from boids_env.policies.reynolds_params import reynolds_params
 
 
 def test_arrows_drive_the_leader_at_its_speed():

@@ -2,9 +2,9 @@
 
 import pytest
 
-from boids_env.config import reynolds_params
 from boids_env.environment import BoidsEnv
 from boids_env.eval.suites import GENERALISATION, PAPER, ROBUSTNESS, load_suite
+from boids_env.policies.reynolds_params import reynolds_params
 
 
 def test_paper_suite_is_table_iii():

@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
-from boids_env import parallel_env, reynolds_params
+from boids_env import parallel_env
 from boids_env.eval.episode import run_episode
 from boids_env.observations import ObservationLayout, build_observations
 from boids_env.policies import ReynoldsPolicy
 from boids_env.policies.reynolds import reynolds_command, reynolds_forces
+from boids_env.policies.reynolds_params import Timing, reynolds_params
 
 
 def clip(x, limit):
@@ -15,7 +16,7 @@ def clip(x, limit):
     return x * limit / n if n > limit else x
 
 
-def reference(pos, vel, p):
+def reference(pos, vel, p, dt=0.1):
     """DESIGN section 3 written straight from full state, one follower at a time."""
     out = []
     for i in range(1, len(pos)):
@@ -35,7 +36,7 @@ def reference(pos, vel, p):
         lead = pos[0] - pos[i]
         f = clip(p.cohesion_weight * coh + p.separation_weight * sep + p.alignment_weight * ali
                  + p.leader_weight * lead, p.max_force)
-        out.append(clip(vel[i] + f / p.mass * p.dt, p.max_speed))
+        out.append(clip(vel[i] + f / p.mass * dt, p.max_speed))
     return np.array(out)
 
 
@@ -50,7 +51,7 @@ def test_from_observations_equals_full_state_reference(preset, robots, leader_we
         pos = np.round(rng.uniform(-1.2, 1.2, (robots, 2)) * 1024) / 1024
         vel = np.round(rng.uniform(-0.5, 0.5, (robots, 2)) * 1024) / 1024
         obs = build_observations(pos, vel, layout, 1.0, 3.0, 10.0)
-        policy = ReynoldsPolicy(preset, leader_weight=leader_weight, startup_time=0.0)
+        policy = ReynoldsPolicy(preset, leader_weight=leader_weight, timing=Timing(0.1, 0.0))
         got = policy.act_batch(obs).astype(np.float64)
         want = reference(pos, vel, p)
         assert np.abs(got - want.astype(np.float32)).max() <= 1e-9, f"trial {trial}"
@@ -123,16 +124,23 @@ def test_a_bound_policy_takes_dt_and_the_start_up_hold_from_the_env(dt, startup_
         if step < held:
             assert not got.any(), f"step {step}: held until {startup_time} s"
         else:
-            p = reynolds_params("paper", dt=dt)  # the study's controller at the env's period
-            want = reference(snap.positions, snap.velocities, p)
+            p = reynolds_params("paper")  # the study's controller at the env's period
+            want = reference(snap.positions, snap.velocities, p, dt)
             assert np.abs(got - want).max() < 1e-5, (step, got.tolist(), want.tolist())
             assert got.any(), f"step {step}: moving after the hold"
         obs, *_ = env.step(act)
 
 
+@pytest.mark.parametrize("given", [{"dt": 0.05}, {"startup_time": 0.0}])
+def test_the_timing_is_the_envs_and_refused_as_a_controller_parameter(given):
+    (name,) = given
+    with pytest.raises(TypeError, match=rf"{name}: the env's timing, not a Reynolds parameter"):
+        ReynoldsPolicy(**given)
+    with pytest.raises(TypeError, match=rf"give {name} to the env"):
+        reynolds_params("paper", **given)
+
+
 @pytest.mark.parametrize(("given", "env_fields", "match"), [
-    ({"dt": 0.05}, {}, r"dt=0.05 s .* the env's dt=0.1 s"),
-    ({"startup_time": 0.0}, {}, r"startup_time=0 s .* the env's startup_time=2 s"),
     ({"max_speed": 0.4}, {"max_speed": 0.3}, r"max_speed=0.4 m/s .* the env's max_speed=0.3"),
     ({"horizon": 1.5}, {}, r"horizon=1.5 m .* the env's horizon=1 m"),
 ])
@@ -147,8 +155,8 @@ def test_own_values_within_the_env_are_kept_and_the_rest_taken_from_it():
     policy = ReynoldsPolicy("boids_ros", max_speed=0.3)  # its own horizon 0.75, speed 0.3
     policy.bind(env)
     p = policy.params
-    assert (p.dt, p.startup_time, p.max_speed, p.horizon) == (0.05, 1.0, 0.3, 0.75)
+    assert (*policy.timing, p.max_speed, p.horizon) == (0.05, 1.0, 0.3, 0.75)
     paper = ReynoldsPolicy()
     paper.bind(env)
     p = paper.params
-    assert (p.dt, p.startup_time, p.max_speed, p.horizon) == (0.05, 1.0, 0.4, 1.5)
+    assert (*paper.timing, p.max_speed, p.horizon) == (0.05, 1.0, 0.4, 1.5)

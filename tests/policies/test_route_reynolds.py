@@ -4,11 +4,12 @@ term pins followers to the wall between them and the leader."""
 import numpy as np
 import pytest
 
-from boids_env.config import EnvConfig, reynolds_params
+from boids_env.config import EnvConfig
 from boids_env.environment import BoidsEnv
 from boids_env.eval.episode import env_fields_for, run_episode
 from boids_env.observations import ObservationLayout
 from boids_env.policies.reynolds import ReynoldsPolicy
+from boids_env.policies.reynolds_params import Timing, reynolds_params
 
 # The doorway scene (a wall at x = 0, a 1 m door at y = 0): the leader goes through the door,
 # north along the wall's east face and east, and stands there 20 s. The followers start
@@ -67,5 +68,6 @@ def test_the_route_preset_asks_for_route_sensing_and_refuses_without_it():
     assert reynolds_params("route").follow_route and not reynolds_params("paper").follow_route
     assert not hasattr(ReynoldsPolicy("paper"), "env_fields")
     with pytest.raises(ValueError, match="route_sensing"):
-        ReynoldsPolicy("route", layout=ObservationLayout(18), startup_time=0.0).act_batch(
+        ReynoldsPolicy("route", layout=ObservationLayout(18),
+                       timing=Timing(0.1, 0.0)).act_batch(
             np.zeros((2, ObservationLayout(18).size)))

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from boids_env.config import PRESETS, ReynoldsParams, reynolds_params
 from boids_env.environment import BoidsEnv
 from boids_env.eval.episode import env_fields_for, run_episode
 from boids_env.policies.reynolds import ReynoldsPolicy, sized_params
+from boids_env.policies.reynolds_params import PRESETS, ReynoldsParams, reynolds_params
 
 
 def _bound(preset, robot):

@@ -8,7 +8,6 @@ import threading
 import numpy as np
 import pytest
 
-from boids_env.config import ReynoldsParams, reynolds_params
 from boids_env.eval.ros import reconfigure
 from boids_env.eval.ros.protocol import (
     CommandBoard,
@@ -17,6 +16,7 @@ from boids_env.eval.ros.protocol import (
     is_continuation,
     stamp_ns,
 )
+from boids_env.policies.reynolds_params import ReynoldsParams, reynolds_params
 
 
 def test_lockstep_board_counts_only_answers_to_the_current_tick():
