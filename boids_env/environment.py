@@ -550,7 +550,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         sc = self.episode_config.scenario
         frame = Frame(world.positions, world.steps, self.episode_config.world.robot_radius,
                       status, self.episode_config.observation.horizon, dict(self.overlays),
-                      tuple(self.hud_text), None if sc.leader == "robot" else sc.person_radius,
+                      tuple(self.hud_text), sc.leader_radius,
                       world.pedestrian_positions if world.p else None, sc.person_radius,
                       world.headings)
         return self._renderer.draw(frame)

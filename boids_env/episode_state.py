@@ -109,7 +109,7 @@ class Episode:
         # the person and the crowd draw from the stream only when asked for: defaults unchanged
         leader, people = make_person(sc, scene, leader, initial, rng, wc.dt)
         headings = (np.full(sc.robots, leader.initial_heading)
-                    if wc.drive == "unicycle" else None)
+                    if wc.has_heading else None)
         observer = Observer(config)
         world = build_world(config, initial, headings, people)
         observer.reset(rng, leader.initial_heading)
@@ -149,7 +149,7 @@ def build_world(config: EnvConfig, initial: FloatArray, headings: FloatArray | N
     when the scenario has them."""
     sc = config.scenario
     return World(config.world, initial, config.scene, headings,
-                 leader_radius=None if sc.leader == "robot" else sc.person_radius,
+                 leader_radius=sc.leader_radius,
                  pedestrians=None if people is None else people.start_pedestrians,
                  pedestrian_radius=sc.person_radius,
-                 leader_kinematic=sc.leader == "trajectory" and sc.crowd > 0)
+                 leader_kinematic=sc.leader_kind.kinematic(sc))

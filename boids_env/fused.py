@@ -36,7 +36,7 @@ def fusable(env: Any) -> bool:
     computes (the module doc's list)."""
     cfg, episode = env.episode_config, env.episode
     obs, lay = cfg.observation, episode.observer.layout
-    return (cfg.world.drive != "unicycle" and cfg.scenario.robots < KD_TREE_MIN_ROBOTS
+    return (not cfg.world.has_heading and cfg.scenario.robots < KD_TREE_MIN_ROBOTS
             and lay.study_only
             and obs.obs_noise == 0 and not obs.route_leader and obs.frame in ("world", "leader")
             and cfg.metrics.alignment_source == "command" and episode.realism is None

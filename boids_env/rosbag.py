@@ -152,7 +152,7 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
     forces = connect("/markers/forces", MARKERS) if recording.forces else None
     route = connect(PATH_TOPIC, PATH, **latched) if recording.leader_path is not None else None
     sc = recording.config.scenario
-    person = connect(PERSON_TOPIC, ODOM) if sc.leader != "robot" else None
+    person = connect(PERSON_TOPIC, ODOM) if sc.leader_radius is not None else None
     crowd = recording.pedestrians
     people = connect(PEOPLE_TOPIC, MARKERS) if person is not None or crowd is not None else None
     build = Messages(store, ros1, recording.config.world.robot_radius)
@@ -410,7 +410,7 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
         return np.ascontiguousarray(a.transpose(1, 0, 2))
 
     time = (stamps - stamps[0]) / 1e9
-    if base.world.drive == "unicycle" and not odometry_only:
+    if base.world.has_heading and not odometry_only:
         return _heading_recording(base, time, o, c, leader_path)
     return Recording(base, time, samples(o[:, :, 1:3]), samples(o[:, :, 3:5]),
                      samples(c[:, :, :2]), leader_path=leader_path)

@@ -226,7 +226,7 @@ def _route_reason(trained: int, env: int, config: EnvConfig, made: str | None) -
 
 
 def _has_headings(config: EnvConfig) -> bool:
-    return config.world.drive == "unicycle"
+    return config.world.has_heading
 
 
 def _velocities(r: Ranges) -> tuple[list[float], list[float]]:

@@ -147,7 +147,7 @@ class Observer:
         self.reach = scene.span
         sc = config.scenario
         self.sensors = Sensors(scene, static_range, obs.lidar_range, config.world.robot_radius,
-                               None if sc.leader == "robot" else sc.person_radius,
+                               sc.leader_radius,
                                sc.person_radius, obs.pedestrian_range, obs.route_cell)
         self.space = self.make_space()
         self.heading = INITIAL_HEADING
