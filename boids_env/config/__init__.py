@@ -230,8 +230,9 @@ def _check_walk_start(given: Any, sc: ScenarioConfig) -> None:
     fixed = sc.leader_kind.fixed_start(sc)
     if fixed is not None and not same:
         raise ValueError(
-            f"start {tuple(given)} cannot be given with leader={sc.leader!r}: {fixed}; drop "
-            f"start (boids run: --start), or record a walk that starts where you want")
+            f"start {tuple(given)} cannot be given with leader={sc.leader!r}: {fixed} at its "
+            f"first row ({sc.start[0]:g}, {sc.start[1]:g}); drop start (boids run: --start), or record a walk that starts where "
+            f"you want")
 
 
 def _has_items(value: Any) -> bool:
@@ -409,9 +410,10 @@ def _start_advice(sc: ScenarioConfig, k: int) -> str:
     fixed = sc.leader_kind.fixed_start(sc)
     if fixed is None:
         return f"change start ({sc.start[0]:g}, {sc.start[1]:g}), start_heading, {grid}"
+    at = f"({sc.start[0]:g}, {sc.start[1]:g})"
     if k == 0:
-        return f"{fixed}: use one that starts in free space or another scene"
-    return f"{fixed}: change start_heading (the grid lies behind it), {grid}"
+        return f"{fixed} {at}: use one that starts in free space or another scene"
+    return f"{fixed} {at}: change start_heading (the grid lies behind it), {grid}"
 
 
 def _check_scene(config: EnvConfig) -> None:

@@ -80,7 +80,7 @@ class LeaderKind:
         return []
 
     def fixed_start(self, scenario: ScenarioConfig) -> str | None:
-        """What fixes the leader's start when the kind does (a recorded walk: its first row),
+        """What fixes the leader's start when the kind does ("the walk W fixes the start"),
         for errors; None when ``start`` is free."""
         return None
 
@@ -173,9 +173,7 @@ class WalkLeader(LeaderKind):
         return [(fastest, f"the walk {scenario.leader_trajectory} ({fastest:.3g} m/s at most)")]
 
     def fixed_start(self, scenario: ScenarioConfig) -> str | None:
-        x, y = scenario.start
-        return f"the walk {scenario.leader_trajectory} fixes the start at its first row " \
-               f"({x:g}, {y:g})"
+        return f"the walk {scenario.leader_trajectory} fixes the start"
 
     def path_words(self, scenario: ScenarioConfig) -> str:
         return f"the walk {scenario.leader_trajectory}"
