@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from boids_env.eval import figures
+from boids_env.eval.cases import BLOCK_SIZE
 from boids_env.eval.compare import policy_comparison, with_contacts
 from boids_env.eval.compare import verdicts as policy_verdicts
 from boids_env.eval.folder import REPORT_OUTPUTS, read_manifest, record_files
@@ -36,7 +37,6 @@ from boids_env.eval.study import (
     study_tukey,
     verdicts,
 )
-from boids_env.eval.suites import BLOCK_SIZE
 from boids_env.files import atomic_path, write_text
 from boids_env.metrics import SAFETY_KEYS
 from boids_env.parquet import read_table

@@ -32,9 +32,9 @@ import pandas as pd
 
 from boids_env.eval import folder
 from boids_env.eval.backends import execute
+from boids_env.eval.cases import Case, Suite
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.eval.progress import bar as progress_bar
-from boids_env.eval.suites import Case, Suite
 from boids_env.files import append_line, atomic_path, write_json
 from boids_env.untrusted import MAX_MODEL_BYTES, check_file
 
