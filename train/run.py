@@ -234,6 +234,25 @@ def _final_evaluation(evaluator: FlockEvalCallback, config: TrainConfig) -> None
           f"), cost {result['cost']:.3f}; written to evaluations.csv")
 
 
+def _model(config: TrainConfig, venv: VecMonitor, device: str, out: Path,
+           resume: str | Path | None, verbose: int, trust_model: bool) -> Any:
+    """The learner :func:`train` trains: the checkpoint ``resume`` (a checkpoint that cannot
+    be read is refused before anything is written), else a new one built from ``config``."""
+    import torch
+
+    if resume is None:
+        return learner_class(config.algorithm)(
+            "MlpPolicy", venv, device=device, verbose=verbose,
+            tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
+    model = load_checkpoint(resume, config, venv, device, str(out / "tb"), verbose,
+                            trust=trust_model)
+    model.set_random_seed(config.seed)
+    if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
+        with torch.no_grad():
+            model.policy.log_std.fill_(config.resume_log_std)
+    return model
+
+
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
           overwrite: bool = False, progress_bar: bool = False, verbose: int = 0,
           trust_model: bool = False) -> Path:
@@ -277,18 +296,8 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
           f"stepped in this process{beside}; {threads} torch thread{'s' * (threads > 1)} "
           f"on {device}")
     venv = VecMonitor(flock)
-    cls = learner_class(config.algorithm)
     try:
-        if resume is not None:  # a checkpoint that cannot be read is refused before writing
-            model = load_checkpoint(resume, config, venv, device, str(out / "tb"), verbose,
-                                    trust=trust_model)
-            model.set_random_seed(config.seed)
-            if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
-                with torch.no_grad():
-                    model.policy.log_std.fill_(config.resume_log_std)
-        else:
-            model = cls("MlpPolicy", venv, device=device, verbose=verbose,
-                        tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
+        model = _model(config, venv, device, out, resume, verbose, trust_model)
         # the folder is claimed once the model is built: a checkpoint that cannot be resumed
         # leaves nothing behind
         folder.claim(out, identity(config), overwrite=overwrite, owner=folder.TRAIN,
