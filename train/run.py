@@ -234,6 +234,15 @@ def _final_evaluation(evaluator: FlockEvalCallback, config: TrainConfig) -> None
           f"), cost {result['cost']:.3f}; written to evaluations.csv")
 
 
+def _say_where(flock: FlockVecEnv, threads: int, device: str) -> None:
+    """Prints where a training steps its env copies and runs torch."""
+    workers = flock.processes - 1
+    beside = f" and {workers} worker process{'es' * (workers > 1)}" if workers else ""
+    print(f"boids train: {len(flock.specs)} env copies ({flock.num_envs} follower slots) "
+          f"stepped in this process{beside}; {threads} torch thread{'s' * (threads > 1)} "
+          f"on {device}")
+
+
 def _model(config: TrainConfig, venv: VecMonitor, device: str, out: Path,
            resume: str | Path | None, verbose: int, trust_model: bool) -> Any:
     """The learner :func:`train` trains: the checkpoint ``resume`` (a checkpoint that cannot
@@ -290,11 +299,7 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     torch.set_num_threads(config.resolved_threads())
     meta = model_meta(config)
     flock = make_vec_env(config)
-    workers, threads = flock.processes - 1, torch.get_num_threads()
-    beside = f" and {workers} worker process{'es' * (workers > 1)}" if workers else ""
-    print(f"boids train: {len(flock.specs)} env copies ({flock.num_envs} follower slots) "
-          f"stepped in this process{beside}; {threads} torch thread{'s' * (threads > 1)} "
-          f"on {device}")
+    _say_where(flock, torch.get_num_threads(), device)
     venv = VecMonitor(flock)
     try:
         model = _model(config, venv, device, out, resume, verbose, trust_model)
