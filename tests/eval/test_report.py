@@ -14,7 +14,8 @@ from boids_env import parallel_env
 from boids_env.eval import figures
 from boids_env.eval.compare import policy_comparison, verdicts
 from boids_env.eval.episode import run_episode
-from boids_env.eval.report import build_report, num, signed
+from boids_env.eval.report import build_report, num
+from boids_env.eval.study import signed
 from boids_env.eval.suites import PAPER
 from boids_env.policies import ReynoldsPolicy
 
