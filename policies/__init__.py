@@ -1,7 +1,7 @@
 """Policies for the followers: one protocol, the study's Reynolds controller, baselines."""
 
-from boids_env.policies.base import BatchPolicy, Policy, SB3Predictor
+from boids_env.policies.base import BatchPolicy, Policy
 from boids_env.policies.random_policy import RandomPolicy
 from boids_env.policies.reynolds import ReynoldsPolicy
 
-__all__ = ["BatchPolicy", "Policy", "RandomPolicy", "ReynoldsPolicy", "SB3Predictor"]
+__all__ = ["BatchPolicy", "Policy", "RandomPolicy", "ReynoldsPolicy"]
