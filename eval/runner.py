@@ -42,8 +42,6 @@ EPISODES = "episodes.jsonl"
 ERRORS = "errors.jsonl"
 TRAJECTORIES = "trajectories"
 MAX_WORKERS = 1024
-V_COLUMNS = ("V_sep", "V_coh", "V_align", "V_align_unwrapped")
-COUNT_COLUMNS = ("count_sep", "count_coh", "count_align", "count_align_unwrapped")
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,6 @@ from boids_env.eval.stats import pair_difference
 
 DATA = resources.files("boids_env.eval") / "data"
 GROUP_OF_RQ = {1: "rq1", 2: "rq2", 3: "rq3"}
-FACTOR_OF_RQ = {1: "leader_speed", 2: "leader_weight", 3: "robots"}
 
 
 def _read(name: str) -> pd.DataFrame:
