@@ -128,13 +128,6 @@ def reward_scale(config: MetricsConfig, dt: float) -> FloatArray:
     return (-weights * dt)[:, None]
 
 
-def reward_terms(flags: dict[str, BoolArray], config: MetricsConfig, dt: float
-                 ) -> dict[str, FloatArray]:
-    """Per-follower reward terms −weight · flag · dt (DESIGN section 4)."""
-    scale = reward_scale(config, dt)[:, 0]
-    return {name: scale[i] * flags[name].astype(float) for i, name in enumerate(VIOLATIONS)}
-
-
 def episode_violations(flags: dict[str, BoolArray]) -> dict[str, float]:
     """The study's V_sep, V_coh, V_align from an episode's flags ``(T, F)``.
 
@@ -153,41 +146,10 @@ def violation_counts(flags: dict[str, BoolArray]) -> dict[str, npt.NDArray[np.in
             for name in VIOLATIONS}
 
 
-def pairwise_min_distance(positions: FloatArray) -> FloatArray:
-    """Smallest centre distance between any two robots at each time: (T, N, 2) -> (T,)."""
-    n = positions.shape[-2]
-    if n < 2:
-        return np.full(positions.shape[0], np.inf)
-    if n <= 64:
-        diff = positions[:, :, None, :] - positions[:, None, :, :]
-        dist = np.sqrt(np.einsum("tijd,tijd->tij", diff, diff))
-        dist[:, np.arange(n), np.arange(n)] = np.inf
-        return dist.min(axis=(1, 2))
-    return np.array([cKDTree(p).query(p, k=2)[0][:, 1].min() for p in positions])
-
-
 def contact_pairs(positions: FloatArray, distance: float) -> set[tuple[int, int]]:
     """Pairs (i < j) of robots closer than ``distance`` at one instant: (N, 2) -> set."""
     pairs = cKDTree(positions).query_pairs(distance, output_type="ndarray")
     return {(int(i), int(j)) for i, j in pairs}
-
-
-def collision_count(positions: FloatArray, radius: float, tolerance: float = 0.001) -> int:
-    """Number of contact onsets between robots over an episode (T, N, 2): a pair that starts
-    touching (closer than 2·radius + tolerance) after not touching counts once."""
-    touching: set[tuple[int, int]] = set()
-    onsets = 0
-    for p in positions:
-        now = contact_pairs(p, 2 * radius + tolerance)
-        onsets += len(now - touching)
-        touching = now
-    return onsets
-
-
-def _pairs_within(positions: FloatArray, distance: float) -> npt.NDArray[np.intp]:
-    """(M, 2) pairs i < j of one sample closer than ``distance``."""
-    pairs = cKDTree(positions).query_pairs(distance, output_type="ndarray")
-    return np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
 
 
 def _pair_stats(pos: FloatArray, touch: float) -> dict[str, float]:
@@ -331,12 +293,6 @@ def safety_flags(positions: FloatArray, radius: float, safety_distance: float,
             "wall": np.asarray(near_static, dtype=bool)}
 
 
-def cohesion_gap(positions: FloatArray, cohesion_threshold: float) -> FloatArray:
-    """Metres each follower is beyond ``cohesion_threshold`` from the leader (0 within it):
-    (..., N, 2) -> (..., N-1). The dense counterpart of the cohesion flag (``reward_gap``)."""
-    return np.maximum(leader_distance(positions) - cohesion_threshold, 0.0)
-
-
 PARKED_AFTER = 5.0
 """Seconds the leader must have stood still before its followers count as parked (the
 parked-formation metrics; issue 26's measure)."""
@@ -452,11 +408,42 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
     flags = flags_for(config, positions, commanded, headings)
     out: dict[str, object] = dict(episode_violations(flags))
     out.update({k: v.tolist() for k, v in violation_counts(flags).items()})
-    # The study's own (unwrapped) alignment rule beside the configured one, for comparisons.
+    out.update(_other_alignments(flags, config, positions, commanded, headings))
+    out["steps"] = int(positions.shape[0])
+    out["duration"] = float(positions.shape[0] * dt)
+    out["polarization"] = float(polarization(velocities).mean())
+    out.update(_leader_distances(positions))
+    pos = np.asarray(positions, dtype=float)
+    sight = line_of_sight(pos, scene)
+    safety = safety_metrics(pos, robot_radius, scene.within(pos, robot_radius,
+                                                            CONTACT_TOLERANCE),
+                            leader_path, clearance=scene.clearance(pos), sight=sight)
+    out["min_distance"] = safety.pop("min_distance")
+    # every contact onset, follower-follower and leader-follower
+    out["collisions"] = int(safety["contacts_follower"] + safety["contacts_leader"])
+    out.update(safety)
+    out["no_sight"] = (~sight).mean(axis=0).tolist() if sight.size else []
+    if person_radius is not None:
+        _add_person(out, pos, velocities, robot_radius, person_radius)
+    if pedestrians is not None and np.asarray(pedestrians).shape[1]:
+        from boids_env.proxemics import crowd_metrics
+
+        out.update(crowd_metrics(pos, pedestrians, robot_radius, pedestrian_radius))
+    out.update(parked_metrics(pos, velocities, commanded, dt))
+    return out
+
+
+def _other_alignments(flags: dict[str, BoolArray], config: MetricsConfig,
+                      positions: FloatArray, commanded: FloatArray,
+                      headings: FloatArray | None) -> dict[str, object]:
+    """:func:`episode_metrics`' alignment by the rules other than the configured one (whose
+    ``flags`` are ``V_align``'s): the study's unwrapped rule, for comparisons, and for robots
+    with a heading both the headings' and the commands'."""
     study = flags_for(replace(config, wrap_alignment=False), positions, commanded,
                       headings)["alignment"]
-    out["V_align_unwrapped"] = float(study.sum() / study.shape[0]) if study.shape[0] else 0.0
-    out["count_align_unwrapped"] = study.sum(axis=0).astype(np.int64).tolist()
+    out: dict[str, object] = {
+        "V_align_unwrapped": float(study.sum() / study.shape[0]) if study.shape[0] else 0.0,
+        "count_align_unwrapped": study.sum(axis=0).astype(np.int64).tolist()}
     if headings is not None:
         steps = max(int(positions.shape[0]), 1)
         # the configured source's flags are V_align's: only the other one is computed
@@ -467,37 +454,29 @@ def episode_metrics(positions: FloatArray, velocities: FloatArray, commanded: Fl
         out["V_align_heading"] = float(on_heading.sum() / steps)
         out["count_align_heading"] = on_heading.sum(axis=0).astype(np.int64).tolist()
         out["V_align_command"] = float(on_command.sum() / steps)
-    out["steps"] = int(positions.shape[0])
-    out["duration"] = float(positions.shape[0] * dt)
-    out["polarization"] = float(polarization(velocities).mean())
-    distances = leader_distance(positions)  # (T, N-1)
-    out["mean_leader_distance"] = float(distances.mean())
-    out["final_leader_distance_max"] = float(distances[-1].max()) if distances.size else 0.0
-    out["lost_followers"] = int((distances[-1] > LOST_DISTANCE).sum()) if distances.size else 0
-    pos = np.asarray(positions, dtype=float)
-    sight = line_of_sight(pos, scene)
-    safety = safety_metrics(pos, robot_radius, scene.within(pos, robot_radius,
-                                                            CONTACT_TOLERANCE),
-                            leader_path, clearance=scene.clearance(pos), sight=sight)
-    out["min_distance"] = safety.pop("min_distance")
-    # every contact onset, follower-follower and leader-follower (collision_count's number)
-    out["collisions"] = int(safety["contacts_follower"] + safety["contacts_leader"])
-    out.update(safety)
-    out["no_sight"] = (~sight).mean(axis=0).tolist() if sight.size else []
-    if person_radius is not None:
-        from boids_env.proxemics import person_metrics
-
-        out.update(person_metrics(pos, np.asarray(velocities, dtype=float)[:, 0], robot_radius,
-                                  person_radius))
-        # the leader's contacts by the person's body, not a robot's
-        out["contacts_leader"] = float(out["person_contacts"])  # type: ignore[arg-type]
-        out["collisions"] = int(out["contacts_follower"] + out["contacts_leader"])  # type: ignore[operator]
-    if pedestrians is not None and np.asarray(pedestrians).shape[1]:
-        from boids_env.proxemics import crowd_metrics
-
-        out.update(crowd_metrics(pos, pedestrians, robot_radius, pedestrian_radius))
-    out.update(parked_metrics(pos, velocities, commanded, dt))
     return out
+
+
+def _leader_distances(positions: FloatArray) -> dict[str, object]:
+    """:func:`episode_metrics`' followers' distances to the leader: the mean, the farthest
+    at the end, and how many end lost."""
+    distances = leader_distance(positions)  # (T, N-1)
+    return {"mean_leader_distance": float(distances.mean()),
+            "final_leader_distance_max": float(distances[-1].max()) if distances.size else 0.0,
+            "lost_followers": int((distances[-1] > LOST_DISTANCE).sum())
+            if distances.size else 0}
+
+
+def _add_person(out: dict[str, object], pos: FloatArray, velocities: FloatArray,
+                robot_radius: float, person_radius: float) -> None:
+    """Adds a leading person's proxemics to ``out``, whose leader contacts (and so its
+    collisions) become those with the person's body, not a robot's."""
+    from boids_env.proxemics import person_metrics
+
+    out.update(person_metrics(pos, np.asarray(velocities, dtype=float)[:, 0], robot_radius,
+                              person_radius))
+    out["contacts_leader"] = float(out["person_contacts"])  # type: ignore[arg-type]
+    out["collisions"] = int(out["contacts_follower"] + out["contacts_leader"])  # type: ignore[operator]
 
 
 def line_of_sight(positions: FloatArray, scene: Scene) -> BoolArray:

@@ -332,6 +332,41 @@ def _bounded(messages: Any) -> Any:
         yield message
 
 
+def _read_messages(path: Path) -> tuple[dict[int, list[tuple[float, ...]]],
+                                         dict[int, list[tuple[float, ...]]], np.ndarray | None]:
+    """The bag's messages by robot: each robot k's odometry rows ``(stamp, x, y, vx, vy, qz,
+    qw, ω)`` and ``cmd_vel`` rows ``(vx, vy, ω)``, in message order, and the first leader
+    path (None without one). ``ValueError`` for a file that is not a readable bag."""
+    store = get_typestore(Stores.ROS1_NOETIC if path.is_file() else Stores.ROS2_HUMBLE)
+    odom: dict[int, list[tuple[float, ...]]] = {}
+    cmd: dict[int, list[tuple[float, ...]]] = {}
+    leader_path: np.ndarray | None = None
+    try:
+        with AnyReader([path], default_typestore=store) as reader:
+            for conn, stamp, raw in _bounded(reader.messages()):
+                if conn.topic == PATH_TOPIC and leader_path is None:  # ours: the first one
+                    poses = reader.deserialize(raw, conn.msgtype).poses
+                    leader_path = np.array([(p.pose.position.x, p.pose.position.y)
+                                            for p in poses], dtype=np.float64).reshape(-1, 2)
+                match = _TOPIC.match(conn.topic)
+                if not match:
+                    continue
+                k = int(match.group(1))
+                msg = reader.deserialize(raw, conn.msgtype)
+                if match.group(2) == "odom":
+                    p, v = msg.pose.pose.position, msg.twist.twist.linear
+                    q, w = msg.pose.pose.orientation, msg.twist.twist.angular.z
+                    odom.setdefault(k, []).append((stamp, p.x, p.y, v.x, v.y, q.z, q.w, w))
+                else:
+                    t = msg.twist if hasattr(msg, "twist") else msg  # TwistStamped, or Twist
+                    cmd.setdefault(k, []).append((t.linear.x, t.linear.y, t.angular.z))
+    except FileNotFoundError:
+        raise
+    except Exception as exc:
+        raise ValueError(f"cannot read ROS bag {path}: {exc}") from exc
+    return odom, cmd, leader_path
+
+
 def read_bag(path: str | Path, config: EnvConfig | None = None, *,
              odometry_only: bool = False, answers: bool = False) -> Recording:
     """Reads a bag (ROS 1 file, or ROS 2 folder: MCAP or SQLite) with ``/robot_k/odom`` and
@@ -364,33 +399,7 @@ def read_bag(path: str | Path, config: EnvConfig | None = None, *,
     if not path.exists():
         raise FileNotFoundError(f"bag not found: {path}")
     check_bag(path)
-    store = get_typestore(Stores.ROS1_NOETIC if path.is_file() else Stores.ROS2_HUMBLE)
-    odom: dict[int, list[tuple[int, float, float, float, float]]] = {}
-    cmd: dict[int, list[tuple[float, float]]] = {}
-    leader_path: np.ndarray | None = None
-    try:
-        with AnyReader([path], default_typestore=store) as reader:
-            for conn, stamp, raw in _bounded(reader.messages()):
-                if conn.topic == PATH_TOPIC and leader_path is None:  # ours: the first one
-                    poses = reader.deserialize(raw, conn.msgtype).poses
-                    leader_path = np.array([(p.pose.position.x, p.pose.position.y)
-                                            for p in poses], dtype=np.float64).reshape(-1, 2)
-                match = _TOPIC.match(conn.topic)
-                if not match:
-                    continue
-                k = int(match.group(1))
-                msg = reader.deserialize(raw, conn.msgtype)
-                if match.group(2) == "odom":
-                    p, v = msg.pose.pose.position, msg.twist.twist.linear
-                    q, w = msg.pose.pose.orientation, msg.twist.twist.angular.z
-                    odom.setdefault(k, []).append((stamp, p.x, p.y, v.x, v.y, q.z, q.w, w))
-                else:
-                    t = msg.twist if hasattr(msg, "twist") else msg  # TwistStamped, or Twist
-                    cmd.setdefault(k, []).append((t.linear.x, t.linear.y, t.angular.z))
-    except FileNotFoundError:
-        raise
-    except Exception as exc:
-        raise ValueError(f"cannot read ROS bag {path}: {exc}") from exc
+    odom, cmd, leader_path = _read_messages(path)
     robots = _check_topics(path, odom, cmd, odometry_only, answers)
     o = np.array([odom[k] for k in robots], dtype=np.float64)  # (N, T, 8)
     c = _commands(o, cmd, robots, odometry_only, answers)

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from boids_env.eval import figures
+from boids_env.eval.cases import BLOCK_SIZE
 from boids_env.eval.compare import policy_comparison, with_contacts
 from boids_env.eval.compare import verdicts as policy_verdicts
 from boids_env.eval.folder import REPORT_OUTPUTS, read_manifest, record_files
@@ -30,13 +31,13 @@ from boids_env.eval.stats import COUNT_METRICS, V_METRICS, analyse, pair_differe
 from boids_env.eval.study import (
     GROUP_OF_RQ,
     block_scores,
+    statement,
     study_groups,
     study_runs,
     study_summary,
     study_tukey,
     verdicts,
 )
-from boids_env.eval.suites import BLOCK_SIZE
 from boids_env.files import atomic_path, write_text
 from boids_env.metrics import SAFETY_KEYS
 from boids_env.parquet import read_table
@@ -106,12 +107,6 @@ def num(value: float, digits: int = 3) -> str:
     """``value`` with ``digits`` decimals, never ``-0.000``."""
     text = f"{float(value):.{digits}f}"
     return text[1:] if text.startswith("-") and not text.strip("-0.") else text
-
-
-def signed(value: float) -> str:
-    """A difference to 3 significant digits with its sign; 0 for (almost) nothing, never
-    ``-0``."""
-    return "0" if abs(value) < 5e-13 else f"{value:+.3g}"
 
 
 def p_text(value: float) -> str:
@@ -204,20 +199,12 @@ def finding_table(tukey_study: pd.DataFrame, policy: str) -> pd.DataFrame:
         if row.verdict != "not run":
             part = ours[(ours.group == GROUP_OF_RQ[int(s.rq)]) & (ours.metric == s.metric)]
             diff, reject, p = pair_difference(part, s.group1, s.group2)
-            mine = _statement(diff, reject, s.group1, s.group2, p)
-        statements.append((_statement(s.meandiff, bool(s.reject), s.group1, s.group2,
-                                      s.p_adj_published), mine))
+            mine = statement(diff, reject, s.group1, s.group2, p)
+        statements.append((statement(s.meandiff, bool(s.reject), s.group1, s.group2,
+                                     s.p_adj_published), mine))
     v["study"] = [a for a, _ in statements]
     v["ours"] = [b for _, b in statements]
     return v
-
-
-def _statement(diff: float, reject: bool, g1: str, g2: str, p: float) -> str:
-    shown_p = "p < 0.001" if p < 0.001 else f"p = {p:.3f}"
-    if not reject:
-        return f"no significant difference (Δ {signed(diff)}, {shown_p})"
-    higher = g2 if diff > 0 else g1
-    return f"higher at {higher} by {abs(diff):.3g} ({shown_p})"
 
 
 # Failed episodes: written by the reliability work (issue 14); one function and its one call.

@@ -23,9 +23,6 @@ import math
 import pickle
 import re
 import sys
-import time
-import traceback
-from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,15 +31,10 @@ from typing import Any
 import pandas as pd
 
 from boids_env.eval import folder
-from boids_env.eval.pool import (
-    BACKENDS,
-    DEFAULT_EPISODE_TIMEOUT,
-    available_cores,
-    guarded,
-    run_isolated,
-)
+from boids_env.eval.backends import execute
+from boids_env.eval.cases import Case, Suite
+from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
 from boids_env.eval.progress import bar as progress_bar
-from boids_env.eval.suites import Case, Suite
 from boids_env.files import append_line, atomic_path, write_json
 from boids_env.untrusted import MAX_MODEL_BYTES, check_file
 
@@ -50,8 +42,6 @@ EPISODES = "episodes.jsonl"
 ERRORS = "errors.jsonl"
 TRAJECTORIES = "trajectories"
 MAX_WORKERS = 1024
-V_COLUMNS = ("V_sep", "V_coh", "V_align", "V_align_unwrapped")
-COUNT_COLUMNS = ("count_sep", "count_coh", "count_align", "count_align_unwrapped")
 
 
 @dataclass(frozen=True)
@@ -403,23 +393,7 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
         KeyboardInterrupt: after Ctrl-C, once the finished episodes are recorded, every
             worker is stopped and the results table is written.
     """
-    _check_arguments(backend, workers, episode_timeout)
-    if not isinstance(suite, Suite):
-        raise TypeError(f"suite must be a Suite, got {type(suite).__name__}")
-    policies = distinct_policies(policies)
-    if runner is None:  # a bad spec is refused here, not found failing in every episode
-        from boids_env.policies.registry import check_policy_spec
-
-        for policy in policies:
-            check_policy_spec(policy.spec, policy.preset, trust=policy.trust)
-            _check_model_fits(policy, suite)
-    run = runner or run_task
-    if backend == "process":
-        try:
-            pickle.dumps(run)
-        except Exception as exc:
-            raise TypeError(f"runner must be picklable (a module-level function) for "
-                            f"backend='process', or use backend='inline': {exc}") from None
+    policies, run = _checked(policies, suite, runner, backend, workers, episode_timeout)
     out = Path(out)
     folder.check_target(out)
     tasks = plan(policies, suite, str(out / TRAJECTORIES), keep_trajectories)
@@ -441,18 +415,13 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
             append_line(out / EPISODES, line)
             done[task.key] = json.loads(line)
         else:
-            if ok:
-                row = {"reason": "exception", "error": f"the runner returned "
-                       f"{type(row).__name__} that is not a JSON object of metrics"}
-            row = {"key": task.key, "policy": task.policy.label, "case": task.case.name,
-                   "cases": cases_of[task.key], "seed": task.seed,
-                   **{k: v for k, v in row.items() if k != "fatal"}}
+            row = _failure_row(task, ok, row, cases_of[task.key])
             append_line(out / ERRORS, json.dumps(row, default=str))
             errors.append(row)
         bar.update(1)
 
     try:
-        _execute(todo, run, workers, backend, episode_timeout, record)
+        execute(todo, run, workers, backend, episode_timeout, record)
     finally:
         bar.close()
         for err in errors:
@@ -464,6 +433,44 @@ def run_suite(policies: Sequence[PolicySpec], suite: Suite, out: str | Path, *,
         table = results_table(tasks, {**done, **_finished(out, missing)}, suite)
         _write_results(out, table, suite, policies)
     return table
+
+
+def _checked(policies: Sequence[PolicySpec], suite: Suite,
+             runner: Callable[[Task], dict[str, Any]] | None, backend: str,
+             workers: int | None, episode_timeout: float | None
+             ) -> tuple[list[PolicySpec], Callable[[Task], dict[str, Any]]]:
+    """:func:`run_suite`'s arguments checked before anything is written: the distinct
+    policies (each spec and model refused here, not found failing in every episode) and the
+    function that runs one task."""
+    _check_arguments(backend, workers, episode_timeout)
+    if not isinstance(suite, Suite):
+        raise TypeError(f"suite must be a Suite, got {type(suite).__name__}")
+    policies = distinct_policies(policies)
+    if runner is None:  # a bad spec is refused here, not found failing in every episode
+        from boids_env.policies.registry import check_policy_spec
+
+        for policy in policies:
+            check_policy_spec(policy.spec, policy.preset, trust=policy.trust)
+            _check_model_fits(policy, suite)
+    run = runner or run_task
+    if backend == "process":
+        try:
+            pickle.dumps(run)
+        except Exception as exc:
+            raise TypeError(f"runner must be picklable (a module-level function) for "
+                            f"backend='process', or use backend='inline': {exc}") from None
+    return policies, run
+
+
+def _failure_row(task: Task, ok: bool, row: Any, cases: list[str]) -> dict[str, Any]:
+    """The ``errors.jsonl`` row of a failed episode; ``ok`` with a row that is not a JSON
+    object of metrics (a custom runner's mistake) is a failure too."""
+    if ok:
+        row = {"reason": "exception", "error": f"the runner returned "
+               f"{type(row).__name__} that is not a JSON object of metrics"}
+    return {"key": task.key, "policy": task.policy.label, "case": task.case.name,
+            "cases": cases, "seed": task.seed,
+            **{k: v for k, v in row.items() if k != "fatal"}}
 
 
 def _episode_line(task: Task, row: Any) -> str | None:
@@ -504,105 +511,6 @@ def _write_results(out: Path, table: pd.DataFrame, suite: Suite,
 def failures(out: str | Path) -> list[dict[str, Any]]:
     """The failed episodes of the last run into ``out`` (rows of ``errors.jsonl``)."""
     return read_jsonl(Path(out) / ERRORS)
-
-
-Record = Callable[[Task, bool, dict[str, Any]], None]
-
-
-def _execute(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]],
-             workers: int | None, backend: str, timeout: float | None, record: Record
-             ) -> None:
-    if not tasks:
-        return
-    if backend == "inline":
-        for task in tasks:
-            record(task, *_inline(run, task))
-    elif backend == "ray":
-        _execute_ray(tasks, run, workers, timeout, record)
-    else:
-        run_isolated(tasks, run, record, workers=min(workers or available_cores(),
-                                                     len(tasks)), timeout=timeout)
-
-
-def _inline(run: Callable[[Task], dict[str, Any]], task: Task) -> tuple[bool, dict[str, Any]]:
-    try:
-        return True, run(task)
-    except KeyboardInterrupt:
-        raise  # in this process a policy's KeyboardInterrupt cannot be told from Ctrl-C
-    except BaseException as exc:  # SystemExit of a policy included
-        return False, {"reason": "exception", "error": f"{type(exc).__name__}: {exc}",
-                       "traceback": traceback.format_exc()}
-
-
-def _execute_ray(tasks: Sequence[Task], run: Callable[[Task], dict[str, Any]],
-                 workers: int | None, timeout: float | None, record: Record) -> None:
-    """Ray tasks with the process backend's isolation: any exception is a failure row, a
-    crashed worker fails only its task (no retries), and at most ``workers`` tasks are in
-    flight so each is timed from when it starts running."""
-    try:
-        import ray
-    except ImportError as exc:
-        raise ImportError("backend='ray' needs: pip install 'boids-env[ray]'") from exc
-    started = not ray.is_initialized()
-    if started:
-        ray.init(include_dashboard=False, log_to_driver=False)
-    remote = ray.remote(max_retries=0)(guarded)
-    limit = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
-    queue: deque[Task] = deque(tasks)
-    running: dict[Any, tuple[Task, float]] = {}
-    try:
-        while queue or running:
-            while queue and len(running) < limit:
-                task = queue.popleft()
-                running[remote.remote(run, task)] = (task, time.monotonic())
-            wait_for = None
-            if timeout is not None:
-                first = min(start for _, start in running.values())
-                wait_for = max(0.0, first + timeout - time.monotonic())
-            ready, _ = ray.wait(list(running), num_returns=1, timeout=wait_for)
-            for ref in ready:
-                record(running.pop(ref)[0], *_ray_outcome(ray, ref))
-            _ray_timeouts(ray, running, timeout, record)
-    except KeyboardInterrupt:
-        _ray_drain(ray, running, record)
-        raise
-    finally:
-        if started:
-            ray.shutdown()
-
-
-def _ray_timeouts(ray: Any, running: dict[Any, tuple[Task, float]], timeout: float | None,
-                  record: Record) -> None:
-    if timeout is None:
-        return
-    now = time.monotonic()
-    for ref, (task, start) in list(running.items()):
-        if now - start >= timeout:
-            ray.cancel(ref, force=True)
-            del running[ref]
-            record(task, False, {"reason": "timeout", "error": (
-                f"the episode ran longer than the episode timeout ({timeout:g} s); its Ray "
-                f"task was cancelled")})
-
-
-def _ray_drain(ray: Any, running: dict[Any, tuple[Task, float]], record: Record) -> None:
-    """After Ctrl-C: records the tasks already finished and cancels the others."""
-    if running:
-        ready, _ = ray.wait(list(running), num_returns=len(running), timeout=0)
-        for ref in ready:
-            record(running.pop(ref)[0], *_ray_outcome(ray, ref))
-    for ref in running:
-        ray.cancel(ref, force=True)
-
-
-def _ray_outcome(ray: Any, ref: Any) -> tuple[bool, dict[str, Any]]:
-    try:
-        ok, row = ray.get(ref)
-    except Exception as exc:  # the worker crashed or the task was lost
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        return False, {"reason": "worker died", "error": f"{type(exc).__name__}: {first}"}
-    row.pop("fatal", None)
-    return ok, row
 
 
 def results_table(tasks: Sequence[Task], done: dict[str, dict[str, Any]], suite: Suite

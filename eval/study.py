@@ -19,7 +19,6 @@ from boids_env.eval.stats import pair_difference
 
 DATA = resources.files("boids_env.eval") / "data"
 GROUP_OF_RQ = {1: "rq1", 2: "rq2", 3: "rq3"}
-FACTOR_OF_RQ = {1: "leader_speed", 2: "leader_weight", 3: "robots"}
 
 
 def _read(name: str) -> pd.DataFrame:
@@ -72,7 +71,7 @@ def verdicts(tukey_table: pd.DataFrame, policy: str) -> pd.DataFrame:
         ours = tukey_table[(tukey_table.policy == policy) & (tukey_table.group == group)
                            & (tukey_table.metric == s.metric)] if len(tukey_table) else None
         row = {"rq": int(s.rq), "metric": s.metric, "pair": f"{s.group1} vs {s.group2}",
-               "study": _statement(s.meandiff, s.reject, s.group1, s.group2),
+               "study": statement(s.meandiff, s.reject, s.group1, s.group2),
                "study_meandiff": float(s.meandiff)}
         try:
             if ours is None or ours.empty:
@@ -83,17 +82,31 @@ def verdicts(tukey_table: pd.DataFrame, policy: str) -> pd.DataFrame:
                          "verdict": "not run"})
             continue
         same = reject == bool(s.reject) and (not reject or np.sign(diff) == np.sign(s.meandiff))
-        rows.append({**row, "ours": _statement(diff, reject, s.group1, s.group2),
+        rows.append({**row, "ours": statement(diff, reject, s.group1, s.group2),
                      "our_meandiff": diff, "our_p": p,
                      "verdict": "reproduced" if same else "not reproduced"})
     return pd.DataFrame(rows)
 
 
-def _statement(diff: float, reject: bool, g1: str, g2: str) -> str:
+def statement(diff: float, reject: bool, g1: str, g2: str, p: float | None = None) -> str:
+    """A Tukey finding in words: which group is higher and by how much (``diff`` is
+    mean(``g2``) − mean(``g1``)), or no significant difference; with ``p`` (the adjusted
+    p-value) the p-value, otherwise only whether the difference is significant."""
+    if p is None:
+        detail, tag = f"{diff:+.3g}", "significant"
+    else:
+        tag = "p < 0.001" if p < 0.001 else f"p = {p:.3f}"
+        detail = f"Δ {signed(diff)}, {tag}"
     if not reject:
-        return f"no significant difference ({diff:+.3g})"
+        return f"no significant difference ({detail})"
     higher = g2 if diff > 0 else g1
-    return f"higher at {higher} by {abs(diff):.3g} (significant)"
+    return f"higher at {higher} by {abs(diff):.3g} ({tag})"
+
+
+def signed(value: float) -> str:
+    """A difference to 3 significant digits with its sign; 0 for (almost) nothing, never
+    ``-0``."""
+    return "0" if abs(value) < 5e-13 else f"{value:+.3g}"
 
 
 def magnitudes(table: pd.DataFrame, policy: str) -> pd.DataFrame:

@@ -1,202 +1,54 @@
 """Experiment suites as data: cases (a factor at a level, as env fields and policy
-parameters) × seeds. The ``paper`` suite is the study's Table III; ``robustness`` covers what
-the study lists as future work. Users write their own in TOML (see :func:`load_suite`)."""
+parameters) × seeds (the types are in :mod:`boids_env.eval.cases`). The ``paper`` suite is
+the study's Table III; ``robustness`` covers what the study lists as future work. Users write
+their own in TOML (see :func:`load_suite`)."""
 
 from __future__ import annotations
 
 import dataclasses
 import difflib
-import json
-import numbers
-from collections.abc import Sequence
-from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from boids_env.config import FIELD_OWNER, EnvConfig, check_integer
-from boids_env.policies.reynolds_params import ReynoldsParams, reynolds_params
+from boids_env.eval.cases import (
+    MAX_CASES,
+    POLICY_FIELDS,
+    Case,
+    Suite,
+    check_seeds,
+    check_unique,
+    sweep,
+)
+from boids_env.policies.reynolds_params import reynolds_params
 from boids_env.untrusted import excerpt, parse_toml, quote_path, read_text, safe_name
 from boids_env.world.robots import PRESETS as ROBOT_PRESETS
 
-POLICY_FIELDS = tuple(f.name for f in fields(ReynoldsParams) if f.name not in FIELD_OWNER)
-"""Case fields that parameterise the Reynolds controller only (its weights, forces, ...).
-Every other field is an env config field, the physical and timing quantities the controller
-shares with the env included (``horizon``, ``max_speed``, and its timing ``dt``,
-``startup_time``: each routed to the env, which owns it, so every policy's episodes see it
-and a bound Reynolds policy takes it from there)."""
-
-
-@dataclass(frozen=True)
-class Case:
-    """One experimental condition."""
-
-    name: str
-    group: str
-    """The research question (or factor group) the case belongs to, e.g. ``rq1``."""
-    factor: str
-    level: str
-    """The factor's level as a label (``"0.55"``, ``"13"``, ``"circle"``)."""
-    env: dict[str, Any] = field(default_factory=dict)
-    """Env config fields by flat name (``robots``, ``leader_speed``, ``path`` …)."""
-    policy: dict[str, Any] = field(default_factory=dict)
-    """Reynolds parameters (``leader_weight`` …); policies without them ignore these."""
-
-    @property
-    def config_key(self) -> str:
-        """Identical for cases that are the same configuration (run once, reused)."""
-        return json.dumps({"env": self.env, "policy": self.policy}, sort_keys=True)
-
-
-MAX_SEEDS = 10_000
-"""Most seeds a suite may have (10,000 × the paper's 7 distinct cases is about 6 hours of
-episodes on 2 cores); more is refused before anything is allocated."""
-BLOCK_SIZE = 5
-"""Seeds in one block of ``boids eval --blocks``: the study's runs per case."""
-MAX_CASES = 1000
-"""Most cases a suite may have (the largest built-in has 30); more is refused before any is
-validated."""
 MAX_SUITE_BYTES = 1024 * 1024
 """A suite file larger than this (1 MiB) is refused before it is read."""
-MAX_SEED = 2**32 - 1
-"""Largest seed value (numpy's legacy seeding range, which every consumer accepts)."""
-
-
-def _check_unique(names: list[str]) -> None:
-    """``ValueError`` quoting a few of the repeated names (never the whole list)."""
-    counts: dict[str, int] = {}
-    for n in names:
-        counts[n] = counts.get(n, 0) + 1
-    twice = sorted(n for n, k in counts.items() if k > 1)
-    if twice:
-        raise ValueError(f"case names must be unique; {len(twice)} repeated: {excerpt(twice)}")
-
-
-@dataclass(frozen=True)
-class Suite:
-    """Cases × seeds; ``groups`` are analysed separately (one ANOVA per group and metric)."""
-
-    name: str
-    cases: tuple[Case, ...]
-    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
-    per_follower: tuple[str, ...] = ()
-    """Groups analysed on per-follower counts (followers ``1..followers_analysed``) instead of
-    V_*, as the study did for group size."""
-    followers_analysed: int = 6
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name:
-            raise ValueError(f"suite name must be a non-empty string, got {self.name!r}")
-        cases = _sequence("cases", self.cases)
-        if not cases or not all(isinstance(c, Case) for c in cases):
-            raise ValueError(f"cases must be a non-empty sequence of Case, got {self.cases!r}")
-        _check_unique([c.name for c in cases])
-        object.__setattr__(self, "cases", cases)
-        object.__setattr__(self, "seeds", check_seeds(self.seeds))
-        groups = _sequence("per_follower", self.per_follower)
-        unknown = [g for g in groups if g not in {c.group for c in cases}]
-        if unknown:
-            raise ValueError(f"per_follower names group(s) {unknown} that no case belongs to; "
-                             f"groups: {sorted({c.group for c in cases})}")
-        object.__setattr__(self, "per_follower", groups)
-        object.__setattr__(self, "followers_analysed", check_integer(
-            "followers_analysed", self.followers_analysed, 1, 10_000))
-
-    @property
-    def groups(self) -> dict[str, list[Case]]:
-        out: dict[str, list[Case]] = {}
-        for case in self.cases:
-            out.setdefault(case.group, []).append(case)
-        return out
-
-    def with_env(self, **env: Any) -> Suite:
-        """The suite with the env config fields ``env`` set in every case (over the case's
-        own), e.g. ``with_env(realism="ros")``; ``ValueError`` naming a bad field or value."""
-        if not env:
-            return self
-        EnvConfig().replace(**env)  # a bad name or value fails here, before any episode
-        return dataclasses.replace(self, cases=tuple(
-            dataclasses.replace(c, env={**c.env, **env}) for c in self.cases))
-
-    def with_blocks(self, blocks: int | None) -> Suite:
-        """The suite with ``blocks`` independent blocks of :data:`BLOCK_SIZE` seeds (seeds
-        0..5·blocks−1), scored block by block in the report as separate reproductions."""
-        if blocks is None:
-            return self
-        check_integer("blocks", blocks, 1, MAX_SEEDS // BLOCK_SIZE)
-        return self.with_seeds(BLOCK_SIZE * int(blocks))
-
-    def with_seeds(self, seeds: int | Sequence[int] | None) -> Suite:
-        """The suite with ``seeds`` (an int n means seeds 0..n-1, 1 <= n <=
-        :data:`MAX_SEEDS`)."""
-        if seeds is None:
-            return self
-        return dataclasses.replace(self, seeds=check_seeds(seeds))
-
-
-def check_seeds(seeds: Any) -> tuple[int, ...]:
-    """Seeds as a tuple: a count n (seeds 0..n-1) or distinct integers in [0,
-    :data:`MAX_SEED`], at most :data:`MAX_SEEDS` of them; ``ValueError`` otherwise (checked
-    before anything is allocated)."""
-    allowed = (f"a count in [1, {MAX_SEEDS}] or a list of up to {MAX_SEEDS} distinct "
-               f"integers in [0, {MAX_SEED}]")
-    if isinstance(seeds, numbers.Integral) and not isinstance(seeds, bool):
-        if not 1 <= int(seeds) <= MAX_SEEDS:
-            raise ValueError(f"seeds must be {allowed}, got {excerpt(seeds)}")
-        return tuple(range(int(seeds)))
-    if isinstance(seeds, str | bytes) or not isinstance(seeds, Sequence):
-        raise ValueError(f"seeds must be {allowed}, got {excerpt(seeds)}")
-    if not 1 <= len(seeds) <= MAX_SEEDS:
-        raise ValueError(f"seeds must be {allowed}, got {len(seeds)} seeds")
-    bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, numbers.Integral)
-           or not 0 <= int(s) <= MAX_SEED]
-    if bad:
-        raise ValueError(f"seeds must be {allowed}, got {bad[:5]!r} in {list(seeds)[:10]!r}")
-    chosen = tuple(int(s) for s in seeds)
-    if len(set(chosen)) != len(chosen):
-        repeated = sorted({s for s in chosen if chosen.count(s) > 1})
-        raise ValueError(f"seeds must be distinct, got {repeated} more than once")
-    return chosen
-
-
-def _sequence(name: str, value: Any) -> tuple[Any, ...]:
-    if isinstance(value, str | bytes) or not isinstance(value, Sequence):
-        raise ValueError(f"{name} must be a sequence, got {value!r}")
-    return tuple(value)
-
-
-def _sweep(group: str, factor: str, levels: list[tuple[str, dict[str, Any]]],
-           base: dict[str, Any] | None = None) -> list[Case]:
-    cases = []
-    for label, values in levels:
-        merged = {**(base or {}), **values}
-        env = {k: v for k, v in merged.items() if k not in POLICY_FIELDS}
-        pol = {k: v for k, v in merged.items() if k in POLICY_FIELDS}
-        cases.append(Case(f"{factor}={label}", group, factor, label, env, pol))
-    return cases
-
 
 CONTROLLED = {"robots": 13, "leader_speed": 0.55, "leader_weight": 1.0}
 """The study's controlled values (DESIGN section 5)."""
 
 PAPER = Suite("paper", tuple(
-    _sweep("rq1", "leader_speed", [(s, {"leader_speed": float(s)})
-                                   for s in ("0.5", "0.55", "0.6")], CONTROLLED)
-    + _sweep("rq2", "leader_weight", [(w, {"leader_weight": float(w)})
-                                      for w in ("1.0", "1.1", "1.2")], CONTROLLED)
-    + _sweep("rq3", "robots", [(n, {"robots": int(n)}) for n in ("7", "13", "19")],
-             CONTROLLED)), per_follower=("rq3",))
+    sweep("rq1", "leader_speed", [(s, {"leader_speed": float(s)})
+                                  for s in ("0.5", "0.55", "0.6")], CONTROLLED)
+    + sweep("rq2", "leader_weight", [(w, {"leader_weight": float(w)})
+                                     for w in ("1.0", "1.1", "1.2")], CONTROLLED)
+    + sweep("rq3", "robots", [(n, {"robots": int(n)}) for n in ("7", "13", "19")],
+            CONTROLLED)), per_follower=("rq3",))
 """Table III: three research questions × three levels, five seeds. Cases 2, 4 and 8 are the
 same configuration and are run once."""
 
 ROBUSTNESS = Suite("robustness", tuple(
-    _sweep("path", "path", [(p, {"path": p}) for p in
-                            ("square", "circle", "figure_eight", "random_waypoints")], CONTROLLED)
-    + _sweep("placement", "init_jitter", [(j, {"init_jitter": float(j)})
-                                          for j in ("0.05", "0.12", "0.2")], CONTROLLED)
-    + _sweep("group_size", "robots", [(n, {"robots": int(n)}) for n in ("13", "31", "61")],
-             CONTROLLED)
-    + _sweep("noise", "obs_noise", [(s, {"obs_noise": float(s)})
-                                    for s in ("0.0", "0.02", "0.05")], CONTROLLED)))
+    sweep("path", "path", [(p, {"path": p}) for p in
+                           ("square", "circle", "figure_eight", "random_waypoints")], CONTROLLED)
+    + sweep("placement", "init_jitter", [(j, {"init_jitter": float(j)})
+                                         for j in ("0.05", "0.12", "0.2")], CONTROLLED)
+    + sweep("group_size", "robots", [(n, {"robots": int(n)}) for n in ("13", "31", "61")],
+            CONTROLLED)
+    + sweep("noise", "obs_noise", [(s, {"obs_noise": float(s)})
+                                   for s in ("0.0", "0.02", "0.05")], CONTROLLED)))
 """Future work of the study: other leader paths, initial placement spread, larger groups and
 sensing noise (Gaussian, std in m and m/s), 13 robots at 0.55 m/s otherwise."""
 
@@ -230,12 +82,12 @@ PERSON_BASE = {"scene": "doorway", "leader": "person", "robots": 13, "leader_spe
 robots' top speed (0.5 m/s preferred), 13 robots, no crowd."""
 
 PERSON = Suite("person", tuple(
-    _sweep("speed", "leader_speed", [(s, {"leader_speed": float(s)})
-                                     for s in ("0.4", "0.5", "0.6", "0.75")], PERSON_BASE)
-    + _sweep("group_size", "robots", [(n, {"robots": int(n)}) for n in ("7", "13", "19")],
-             PERSON_BASE)
-    + _sweep("crowd", "crowd", [(n, {"crowd": int(n)}) for n in ("0", "5", "10", "20")],
-             PERSON_BASE)))
+    sweep("speed", "leader_speed", [(s, {"leader_speed": float(s)})
+                                    for s in ("0.4", "0.5", "0.6", "0.75")], PERSON_BASE)
+    + sweep("group_size", "robots", [(n, {"robots": int(n)}) for n in ("7", "13", "19")],
+            PERSON_BASE)
+    + sweep("crowd", "crowd", [(n, {"crowd": int(n)}) for n in ("0", "5", "10", "20")],
+            PERSON_BASE)))
 """The study's questions with a person leading (the ``people`` extra): the person's preferred
 walking speed against the robots' top speed of 0.5 m/s (0.8×, 1×, 1.2×, 1.5×: the study's
 RQ1 trade-off), the group size, and the crowd's density (0, 5, 10, 20 pedestrians in the
@@ -327,9 +179,8 @@ def robot_cases(robot: str) -> list[Case]:
     for group, factor, levels in sweeps:
         for label, values in levels:
             merged = {**base, "leader_weight": 1.0, **values}
-            cases.append(Case(f"{robot}: {factor}={label}", f"{group}@{robot}", factor, label,
-                              {k: v for k, v in merged.items() if k not in POLICY_FIELDS},
-                              {k: v for k, v in merged.items() if k in POLICY_FIELDS}))
+            cases.append(Case.from_fields(f"{robot}: {factor}={label}", f"{group}@{robot}",
+                                          factor, label, merged))
     return cases
 
 
@@ -471,7 +322,6 @@ def load_suite(spec: str | Path) -> Suite:
 SUITE_KEYS = ("name", "seeds", "defaults", "factor", "case", "per_follower",
               "followers_analysed")
 FACTOR_KEYS = ("name", "levels", "group")
-CASE_LABELS = ("name", "group", "factor", "level")
 
 
 def suite_from_dict(data: dict[str, Any], default_name: str = "custom") -> Suite:
@@ -499,7 +349,7 @@ def suite_from_dict(data: dict[str, Any], default_name: str = "custom") -> Suite
             reynolds_params("paper", **case.policy)
         except (ValueError, TypeError) as exc:
             raise ValueError(f"case {case.name!r}: {exc}") from exc
-    _check_unique([c.name for c in cases])
+    check_unique([c.name for c in cases])
     name = safe_name(data.get("name", default_name), "suite key name")
     per_follower = data.get("per_follower", [])
     if not isinstance(per_follower, list) or not all(isinstance(g, str) for g in per_follower):
@@ -558,7 +408,7 @@ def _factor_cases(raw: Any, defaults: dict[str, Any]) -> list[Case]:
             raise ValueError(f"{where} ({name!r}): levels must be a non-empty list of values, "
                              f"got {excerpt(levels)}")
         group = _label(factor.get("group", name), f"{where} ({name!r}): group")
-        cases += _sweep(group, name, [(str(v), {name: v}) for v in levels], defaults)
+        cases += sweep(group, name, [(str(v), {name: v}) for v in levels], defaults)
     return cases
 
 
@@ -570,10 +420,8 @@ def _explicit_cases(raw: Any, defaults: dict[str, Any]) -> list[Case]:
         labels = {k: _label(table.pop(k, v), f"case {i + 1}: {k}") for k, v in labels.items()}
         level = _label(table.pop("level", labels["name"]), f"case {i + 1}: level")
         _check_fields(table, f"case {labels['name']!r}")
-        merged = {**defaults, **table}
-        cases.append(Case(labels["name"], labels["group"], labels["factor"], level,
-                          {k: v for k, v in merged.items() if k not in POLICY_FIELDS},
-                          {k: v for k, v in merged.items() if k in POLICY_FIELDS}))
+        cases.append(Case.from_fields(labels["name"], labels["group"], labels["factor"],
+                                      level, {**defaults, **table}))
     return cases
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -40,19 +40,3 @@ class BatchPolicy:
         # np.array stacks the rows in C (np.stack makes a view of each first: 3x slower)
         batch = self.act_batch(np.array(list(map(observations.__getitem__, agents))))
         return dict(zip(agents, batch, strict=True))
-
-
-class SB3Predictor:
-    """Exposes a :class:`BatchPolicy` through SB3's ``predict()`` so SB3 tools can run it
-    (``evaluate_policy``, VecEnv loops): rows of the observation batch are followers."""
-
-    def __init__(self, policy: BatchPolicy) -> None:
-        self.policy = policy
-
-    def predict(self, observation: npt.NDArray[np.floating], state: Any = None,
-                episode_start: npt.NDArray[np.bool_] | None = None,
-                deterministic: bool = True) -> tuple[npt.NDArray[np.float32], None]:
-        obs = np.asarray(observation)
-        single = obs.ndim == 1
-        actions = self.policy.act_batch(obs[None] if single else obs)
-        return (actions[0] if single else actions), None

@@ -24,6 +24,7 @@ from boids_env.files import atomic_path, read_zip_entry
 from boids_env.policies.base import BatchPolicy
 from boids_env.policies.cards import read_card
 from boids_env.policies.mlp_actor import ACTOR_ENTRY, MLPActor
+from boids_env.policies.sb3_zip import json_table
 from boids_env.untrusted import open_zip
 
 META_ENTRY = "boids.json"
@@ -56,15 +57,7 @@ def read_meta(path: str | Path) -> dict[str, Any]:
             raw = read_zip_entry(zf, META_ENTRY, META_LIMIT)  # a zip bomb is refused
     except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, ValueError) as exc:
         raise ValueError(f"cannot read SB3 model {path}: {exc}") from exc
-    try:
-        meta = json.loads(raw)
-    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
-        raise ValueError(f"SB3 model {path}: its {META_ENTRY} is not valid JSON ({exc})"
-                         ) from None
-    if not isinstance(meta, dict):
-        raise ValueError(f"SB3 model {path}: its {META_ENTRY} must be a JSON table, got "
-                         f"{type(meta).__name__}")
-    return meta
+    return json_table(raw, path, META_ENTRY)
 
 
 def write_meta(path: str | Path, meta: dict[str, Any], model: Any = None) -> None:

@@ -91,15 +91,22 @@ def read_plain_data(path: str | Path) -> dict[str, Any]:
             raw = read_zip_entry(zf, "data", DATA_LIMIT)
     except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError) as exc:
         raise ValueError(f"cannot read SB3 model {path}: {exc}") from exc
-    try:
-        data = json.loads(raw)
-    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
-        raise ValueError(f"SB3 model {path}: its data entry is not valid JSON ({exc})"
-                         ) from None
-    if not isinstance(data, dict):
-        raise ValueError(f"SB3 model {path}: its data entry must be a JSON table, got "
-                         f"{type(data).__name__}")
+    data = json_table(raw, path, "data entry")
     return {key: _plain(value) for key, value in data.items()}
+
+
+def json_table(raw: bytes, path: str | Path, entry: str) -> dict[str, Any]:
+    """The JSON table in ``raw``, the bytes of a model zip's ``entry`` (its name in the
+    messages); a ``ValueError`` naming the file and the entry when they are not valid JSON
+    or not a table."""
+    try:
+        table = json.loads(raw)
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
+        raise ValueError(f"SB3 model {path}: its {entry} is not valid JSON ({exc})") from None
+    if not isinstance(table, dict):
+        raise ValueError(f"SB3 model {path}: its {entry} must be a JSON table, got "
+                         f"{type(table).__name__}")
+    return table
 
 
 def _plain(value: Any) -> Any:

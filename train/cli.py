@@ -132,7 +132,12 @@ def _sweep(args: argparse.Namespace, config: Any) -> int:
 
     table = run_sweep(config, args.seeds, args.out, backend=args.backend, workers=args.workers,
                       overwrite=args.overwrite, resume=args.resume)
-    print(f"wrote {table} and {table.with_suffix('.md')}")
+    return _wrote(table, table.with_suffix(".md"))
+
+
+def _wrote(*paths: Path) -> int:
+    """Says which files a command wrote; its exit status (0)."""
+    print(f"wrote {' and '.join(map(str, paths))}")
     return 0
 
 
@@ -181,8 +186,7 @@ def _cmd_curves(args: argparse.Namespace) -> int:
         runs[label if eq else str(path)] = table
     reference = {"total": args.reference} if args.reference is not None else None
     out = learning_curves(runs, Path(args.figure), reference, title=args.title)
-    print(f"wrote {out} and {out.with_suffix('.svg')}")
-    return 0
+    return _wrote(out, out.with_suffix(".svg"))
 
 
 def _card_parser(sub: argparse._SubParsersAction) -> None:

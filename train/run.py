@@ -234,6 +234,34 @@ def _final_evaluation(evaluator: FlockEvalCallback, config: TrainConfig) -> None
           f"), cost {result['cost']:.3f}; written to evaluations.csv")
 
 
+def _say_where(flock: FlockVecEnv, threads: int, device: str) -> None:
+    """Prints where a training steps its env copies and runs torch."""
+    workers = flock.processes - 1
+    beside = f" and {workers} worker process{'es' * (workers > 1)}" if workers else ""
+    print(f"boids train: {len(flock.specs)} env copies ({flock.num_envs} follower slots) "
+          f"stepped in this process{beside}; {threads} torch thread{'s' * (threads > 1)} "
+          f"on {device}")
+
+
+def _model(config: TrainConfig, venv: VecMonitor, device: str, out: Path,
+           resume: str | Path | None, verbose: int, trust_model: bool) -> Any:
+    """The learner :func:`train` trains: the checkpoint ``resume`` (a checkpoint that cannot
+    be read is refused before anything is written), else a new one built from ``config``."""
+    import torch
+
+    if resume is None:
+        return learner_class(config.algorithm)(
+            "MlpPolicy", venv, device=device, verbose=verbose,
+            tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
+    model = load_checkpoint(resume, config, venv, device, str(out / "tb"), verbose,
+                            trust=trust_model)
+    model.set_random_seed(config.seed)
+    if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
+        with torch.no_grad():
+            model.policy.log_std.fill_(config.resume_log_std)
+    return model
+
+
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
           overwrite: bool = False, progress_bar: bool = False, verbose: int = 0,
           trust_model: bool = False) -> Path:
@@ -271,24 +299,10 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     torch.set_num_threads(config.resolved_threads())
     meta = model_meta(config)
     flock = make_vec_env(config)
-    workers, threads = flock.processes - 1, torch.get_num_threads()
-    beside = f" and {workers} worker process{'es' * (workers > 1)}" if workers else ""
-    print(f"boids train: {len(flock.specs)} env copies ({flock.num_envs} follower slots) "
-          f"stepped in this process{beside}; {threads} torch thread{'s' * (threads > 1)} "
-          f"on {device}")
+    _say_where(flock, torch.get_num_threads(), device)
     venv = VecMonitor(flock)
-    cls = learner_class(config.algorithm)
     try:
-        if resume is not None:  # a checkpoint that cannot be read is refused before writing
-            model = load_checkpoint(resume, config, venv, device, str(out / "tb"), verbose,
-                                    trust=trust_model)
-            model.set_random_seed(config.seed)
-            if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
-                with torch.no_grad():
-                    model.policy.log_std.fill_(config.resume_log_std)
-        else:
-            model = cls("MlpPolicy", venv, device=device, verbose=verbose,
-                        tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
+        model = _model(config, venv, device, out, resume, verbose, trust_model)
         # the folder is claimed once the model is built: a checkpoint that cannot be resumed
         # leaves nothing behind
         folder.claim(out, identity(config), overwrite=overwrite, owner=folder.TRAIN,

@@ -32,7 +32,8 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env.untrusted import excerpt, parse_yaml, quote_path, read_bytes, read_text
-from boids_env.world.scene import MAX_SPAN, STUDY_DEFAULTS, OccupancyGrid, Scene
+from boids_env.world.occupancy import OccupancyGrid
+from boids_env.world.scene import MAX_SPAN, STUDY_DEFAULTS, Scene
 
 MAX_YAML_BYTES = 64 * 1024
 """A map YAML larger than this is refused (they are a few hundred bytes)."""

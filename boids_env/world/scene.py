@@ -13,8 +13,10 @@ A scene holds
   contours of a map);
 - convex **polygons** (solid blocks), whose edges also count as zero-radius capsules for the
   distance and ray queries;
-- optionally the **occupancy grid** of a map (for ``/map`` and for telling free from
-  occupied space exactly as the map says).
+- optionally the **occupancy grid** of a map (:mod:`~boids_env.world.occupancy`; for ``/map``
+  and for telling free from occupied space exactly as the map says).
+
+Queries on the shapes go through a spatial index (:mod:`~boids_env.world.scene_index`).
 """
 
 from __future__ import annotations
@@ -29,14 +31,14 @@ import numpy.typing as npt
 from boids_env import kernels
 from boids_env.untrusted import excerpt
 from boids_env.world import geometry as geo
+from boids_env.world.occupancy import OccupancyGrid
+from boids_env.world.scene_index import FAR, INDEX_CELL, build_index
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
 BOX_WALLS = ("east", "north", "west", "south")
 """The box's walls in the order its queries use (+x, +y, −x, −y)."""
-INDEX_CELL = 0.5
-"""Cell size (m) of the spatial index that narrows a query to the shapes near a point."""
 MAX_SPAN = 500.0
 """Largest extent (m, along x or y) of a scene read from a file (a map or a shapes file):
 every grid over a scene (its spatial index, its occupancy raster) grows with its area. A
@@ -48,8 +50,6 @@ MAX_SHAPES = 50_000
 SECTOR_COS = math.cos(math.radians(45.0))
 """Static slots after the first hold points whose direction differs by more than 45° from
 every earlier slot's (so a corridor shows both walls and a corner both sides)."""
-FAR = 1e9
-"""Coordinates of the padding capsule the index points empty entries at (never hit)."""
 SCENE_FIELDS = ("path", "path_size", "waypoints", "start", "start_heading", "layout_spacing",
                 "laps")
 """The scenario fields a scene may set; choosing a scene resets all of them to its values."""
@@ -57,38 +57,6 @@ STUDY_DEFAULTS: dict[str, Any] = {"path": "square", "path_size": 4.0, "waypoints
                                   "start": (0.0, 0.0), "start_heading": None,
                                   "layout_spacing": 0.5, "laps": 1}
 """Those fields as the study has them (the ``arena`` scene's)."""
-
-
-@dataclass(frozen=True)
-class OccupancyGrid:
-    """A map's cells as ROS ``nav_msgs/OccupancyGrid`` holds them: row 0 at the origin (the
-    bottom of the image), values 0 free, 100 occupied, −1 unknown."""
-
-    cells: npt.NDArray[np.int8]
-    """(height, width) occupancy values."""
-    resolution: float
-    """Metres per cell."""
-    origin: tuple[float, float, float]
-    """(x, y, yaw) of the lower-left corner of cell (0, 0) (m, m, rad)."""
-
-    def occupied(self, points: FloatArray) -> BoolArray:
-        """Whether each point (P, 2) lies in an occupied or unknown cell, or off the map."""
-        x0, y0, yaw = self.origin
-        c, s = math.cos(yaw), math.sin(yaw)
-        compiled = kernels.compiled()
-        if compiled is not None and points.ndim == 2 and np.isfinite(points).all():
-            return compiled.occupied(np.ascontiguousarray(points, dtype=np.float64),
-                                     self.cells, float(self.resolution), float(x0), float(y0),
-                                     c, s)  # the same cells in one loop (boids_env.kernels)
-        rel = points - np.array([x0, y0])
-        local = np.stack([rel[:, 0] * c + rel[:, 1] * s, -rel[:, 0] * s + rel[:, 1] * c], 1)
-        col = np.floor(local[:, 0] / self.resolution).astype(np.int64)
-        row = np.floor(local[:, 1] / self.resolution).astype(np.int64)
-        h, w = self.cells.shape
-        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
-        out = np.ones(len(points), dtype=bool)
-        out[inside] = self.cells[row[inside], col[inside]] != 0
-        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,18 +166,14 @@ class Scene:
         x0, y0, x1, y1 = self.bounds
         return max(x1 - x0, y1 - y0)
 
-    @property
-    def half_extent(self) -> float:
-        """Largest |coordinate| (m) a point of the scene can have."""
-        return max(abs(c) for c in self.bounds)
-
     # -------------------------------------------------------------------- the index
     def _candidates(self, points: FloatArray, reach: float) -> npt.NDArray[np.intp]:
         """(P, C) indices of the query capsules that can lie within ``reach`` of each point
         (padded with the index of a far-away dummy capsule)."""
         key = ("index", float(reach))
         if key not in self._cache:
-            self._cache[key] = _build_index(self, reach)
+            self._cache[key] = build_index(self.bounds, self._qa, self._qb, self._qr,
+                                           reach)
         origin, shape, table = self._cache[key]
         cell = np.floor((points - origin) / INDEX_CELL).astype(np.intp)
         cx = np.clip(cell[:, 0], 0, shape[0] - 1)
@@ -584,37 +548,3 @@ class Scene:
         if not len(close):
             return None
         return f"the {BOX_WALLS[close[0][1]]} wall"
-
-
-def _build_index(scene: Scene, reach: float
-                 ) -> tuple[FloatArray, tuple[int, int], npt.NDArray[np.intp]]:
-    """A grid over the scene's bounds: for each cell the query capsules within ``reach`` of
-    any point of the cell (conservatively, from the cell's centre)."""
-    x0, y0, x1, y1 = scene.bounds
-    margin = reach + INDEX_CELL
-    origin = np.array([x0 - margin, y0 - margin])
-    nx = max(1, math.ceil((x1 - x0 + 2 * margin) / INDEX_CELL))
-    ny = max(1, math.ceil((y1 - y0 + 2 * margin) / INDEX_CELL))
-    gx, gy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
-    centres = origin + (np.stack([gx.ravel(), gy.ravel()], axis=1) + 0.5) * INDEX_CELL
-    qa, qb, qr = scene._qa, scene._qb, scene._qr
-    lo = np.minimum(qa, qb) - qr[:, None]  # each capsule's bounding box
-    hi = np.maximum(qa, qb) + qr[:, None]
-    slack = reach + INDEX_CELL * math.sqrt(0.5)
-    lists = []
-    for start in range(0, len(centres), 512):
-        c = centres[start:start + 512]
-        # only capsules whose box comes near this chunk's cells can be near any of them (the
-        # same lists as testing all, in bounded time and memory)
-        near_box = np.all((lo <= c.max(axis=0) + slack) & (hi >= c.min(axis=0) - slack), axis=1)
-        pick = np.flatnonzero(near_box)
-        for part in range(0, len(c), max(1, 1_000_000 // max(len(pick), 1))):
-            cc = c[part:part + max(1, 1_000_000 // max(len(pick), 1))]
-            _, d = geo.closest_on_segments(cc[:, None, :], qa[None, pick], qb[None, pick])
-            near = d - qr[None, pick] <= slack
-            lists += [pick[np.flatnonzero(row)] for row in near]
-    width = max(1, max(len(x) for x in lists))
-    table = np.full((len(lists), width), len(qr), dtype=np.intp)  # the dummy capsule
-    for i, x in enumerate(lists):
-        table[i, :len(x)] = x
-    return origin, (nx, ny), table

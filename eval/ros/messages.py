@@ -63,7 +63,7 @@ class Messages:
 
     def occupancy_grid(self, grid: Any, stamp_ns: int) -> tuple[Any, Any]:
         """``/map`` and ``/map_metadata`` of a scene's cells (an
-        :class:`~boids_env.world.scene.OccupancyGrid`), as ``map_server`` publishes them."""
+        :class:`~boids_env.world.occupancy.OccupancyGrid`), as ``map_server`` publishes them."""
         import math
 
         from geometry_msgs.msg import Pose

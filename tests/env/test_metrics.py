@@ -49,8 +49,10 @@ def test_episode_violations_sum_over_followers():
 def test_extra_metrics_on_hand_made_trajectory():
     pos = np.array([[[0, 0], [1, 0], [3, 0]], [[0, 0], [0.07, 0], [3, 0]],
                     [[0, 0], [0.5, 0], [3, 0]], [[0, 0], [0.07, 0], [3, 0]]], dtype=float)
-    assert metrics.pairwise_min_distance(pos).tolist() == pytest.approx([1, 0.07, 0.5, 0.07])
-    assert metrics.collision_count(pos, radius=0.036) == 2  # two separate touches
+    nearest = [metrics.safety_metrics(p[None], 0.036)["min_distance"] for p in pos]
+    assert nearest == pytest.approx([1, 0.07, 0.5, 0.07])
+    safety = metrics.safety_metrics(pos, radius=0.036)
+    assert safety["contacts_follower"] + safety["contacts_leader"] == 2  # two separate touches
     vel = np.array([[1, 0], [1, 0], [0, 1]], dtype=float)
     assert metrics.polarization(vel) == pytest.approx(np.hypot(2, 1) / 3)
     assert metrics.polarization(np.zeros((3, 2))) == 0.0
@@ -81,10 +83,11 @@ def test_reward_weights_scale_terms():
     f = {"separation": np.array([True]), "cohesion": np.array([True]),
          "alignment": np.array([False])}
     cfg = MetricsConfig(reward_separation=2.0, reward_cohesion=0.5)
-    t = metrics.reward_terms(f, cfg, 0.1)
-    assert t["separation"].tolist() == [pytest.approx(-0.2)]
-    assert t["cohesion"].tolist() == [pytest.approx(-0.05)]
-    assert t["alignment"].tolist() == [0.0]
+    # the env's terms: the (3, 1) scale times the flags stacked in VIOLATIONS order
+    t = metrics.reward_scale(cfg, 0.1) * np.stack([f[n] for n in metrics.VIOLATIONS])
+    assert t[0].tolist() == [pytest.approx(-0.2)]
+    assert t[1].tolist() == [pytest.approx(-0.05)]
+    assert t[2].tolist() == [0.0]
 
 
 def test_safety_metrics_on_a_hand_made_trajectory():
@@ -171,11 +174,15 @@ def test_safe_reward_terms_follow_the_flags():
         assert info["follower_2"]["reward_contact"] == 0.0
 
 
-def test_cohesion_gap_is_the_distance_beyond_the_threshold():
+def test_the_cohesion_gap_is_the_leader_distance_beyond_the_threshold():
+    """The gap the ``reward_gap`` term pays for, (leader distance − 2.25 m)₊, as the env
+    computes it from :func:`metrics.leader_distance`."""
     pos = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, -2.25], [3.0, 4.0]])
-    assert metrics.cohesion_gap(pos, 2.25).tolist() == pytest.approx([0.0, 0.0, 2.75])
+    gap = np.maximum(metrics.leader_distance(pos) - 2.25, 0.0)
+    assert gap.tolist() == pytest.approx([0.0, 0.0, 2.75])
     batch = np.stack([pos, pos + np.array([1.0, 0.0])])  # (T, N, 2): a shift changes nothing
-    np.testing.assert_allclose(metrics.cohesion_gap(batch, 2.25), [[0, 0, 2.75]] * 2)
+    np.testing.assert_allclose(np.maximum(metrics.leader_distance(batch) - 2.25, 0.0),
+                               [[0, 0, 2.75]] * 2)
 
 
 def test_gap_reward_pays_per_metre_beyond_the_cohesion_threshold():

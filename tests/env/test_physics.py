@@ -74,7 +74,8 @@ def test_snapshot_shapes_leader_first():
 
 def test_a_flock_of_1000_runs_renders_and_stays_physical():
     """Scale: N = 1000 in a ±14 m arena with the Reynolds policy in the loop."""
-    from boids_env.metrics import pairwise_min_distance
+    from scipy.spatial.distance import pdist
+
     from boids_env.policies import ReynoldsPolicy
 
     e = parallel_env(robots=1000, arena_half_size=14.0, render_mode="rgb_array")
@@ -88,7 +89,7 @@ def test_a_flock_of_1000_runs_renders_and_stays_physical():
         snap = e.snapshot()
         assert np.isfinite(snap.positions).all() and np.isfinite(snap.velocities).all()
         assert np.all(np.abs(snap.positions) <= half - radius + 0.005)
-        worst = max(worst, 2 * radius - float(pairwise_min_distance(snap.positions[None])[0]))
+        worst = max(worst, 2 * radius - float(pdist(snap.positions).min()))
     assert worst <= 0.005, f"overlap {worst * 1000:.2f} mm"
     moved = np.linalg.norm(snap.velocities[1:], axis=1)
     assert (moved > 0.05).mean() > 0.5, "most followers should be moving after the start-up"
@@ -101,7 +102,7 @@ def test_a_flock_of_1000_runs_renders_and_stays_physical():
 def test_random_full_speed_commands_overlap_at_most_5_mm(seed):
     """19 robots, every one commanded full speed in a random direction each step, 1000
     steps: contacts never sink more than 5 mm (the study's robots are 72 mm wide)."""
-    from boids_env.metrics import pairwise_min_distance
+    from scipy.spatial.distance import pdist
 
     e = parallel_env(robots=19, path="external", startup_time=0.0, max_cycles=10**6)
     e.reset(seed=seed)
@@ -114,6 +115,6 @@ def test_random_full_speed_commands_overlap_at_most_5_mm(seed):
         e.set_leader_command(unit[0])
         e.step(dict(zip(e.agents, unit[1:], strict=True)))
         pos = e.snapshot().positions
-        worst = max(worst, 2 * radius - float(pairwise_min_distance(pos[None])[0]))
+        worst = max(worst, 2 * radius - float(pdist(pos).min()))
         assert np.abs(pos).max() < half, f"step {step}"
     assert worst <= 0.005, f"overlap {worst * 1000:.2f} mm"

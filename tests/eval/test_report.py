@@ -14,7 +14,8 @@ from boids_env import parallel_env
 from boids_env.eval import figures
 from boids_env.eval.compare import policy_comparison, verdicts
 from boids_env.eval.episode import run_episode
-from boids_env.eval.report import build_report, num, signed
+from boids_env.eval.report import build_report, num
+from boids_env.eval.study import signed
 from boids_env.eval.suites import PAPER
 from boids_env.policies import ReynoldsPolicy
 
@@ -212,8 +213,8 @@ def test_a_rebuild_removes_what_it_no_longer_produces(folder):
 def test_two_policies_with_one_seed_give_a_report_that_says_why_there_is_no_comparison(
         tmp_path):
     """It crashed (KeyError 'policy') on the empty comparison table."""
+    from boids_env.eval.cases import Case, Suite
     from boids_env.eval.runner import PolicySpec, run_suite
-    from boids_env.eval.suites import Case, Suite
 
     suite = Suite("one", (Case("a", "g", "f", "a", {"max_cycles": 30}),), seeds=(0,))
     run_suite([PolicySpec.parse("reynolds"), PolicySpec.parse("random")], suite, tmp_path,
@@ -225,7 +226,7 @@ def test_two_policies_with_one_seed_give_a_report_that_says_why_there_is_no_comp
 def test_names_differing_only_in_punctuation_get_their_own_figures(tmp_path):
     # issue 39 item 6: `speed=0.3` and `speed 0.3` (and policies, groups alike) slug to the
     # same file name, so both showed the figure drawn last
-    from boids_env.eval.suites import Case
+    from boids_env.eval.cases import Case
 
     rng = np.random.default_rng(0)
     policies = ("p=1", "p 1")

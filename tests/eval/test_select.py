@@ -8,9 +8,10 @@ import pandas as pd
 import pytest
 
 from boids_env import parallel_env
+from boids_env.eval.cases import Case, Suite
 from boids_env.eval.episode import run_episode
 from boids_env.eval.select import BARS, ORDERS, Bar, bar_table, per_run, ranking, run_of, select
-from boids_env.eval.suites import DEPLOYMENT, SCENES, VALIDATION, Case, Suite
+from boids_env.eval.suites import DEPLOYMENT, SCENES, VALIDATION
 from boids_env.policies import ReynoldsPolicy
 from boids_env.train.cli import main
 

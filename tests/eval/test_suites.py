@@ -135,7 +135,7 @@ def test_mistakes_in_a_suite_file_name_the_key_and_what_is_allowed(tmp_path, tex
 def test_a_huge_seed_count_is_refused_at_once(tmp_path, capsys):
     import time
 
-    from boids_env.eval.suites import MAX_SEEDS
+    from boids_env.eval.cases import MAX_SEEDS
     from boids_env.train.cli import main
 
     start = time.perf_counter()
