@@ -231,8 +231,8 @@ def _check_walk_start(given: Any, sc: ScenarioConfig) -> None:
     if fixed is not None and not same:
         raise ValueError(
             f"start {tuple(given)} cannot be given with leader={sc.leader!r}: {fixed} at its "
-            f"first row ({sc.start[0]:g}, {sc.start[1]:g}); drop start (boids run: --start), or record a walk that starts where "
-            f"you want")
+            f"first row ({sc.start[0]:g}, {sc.start[1]:g}); drop start (boids run: --start), "
+            f"or record a walk that starts where you want")
 
 
 def _has_items(value: Any) -> bool:
