@@ -602,7 +602,7 @@ def _ros_sim_parser(sub: argparse._SubParsersAction) -> None:
 def _cmd_ros_sim(args: argparse.Namespace) -> int:
     import sys
 
-    from boids_env.eval.ros.protocol import CMD_TIMEOUT
+    from boids_env.eval.graph.protocol import CMD_TIMEOUT
     from boids_env.eval.ros.sim import SimOptions, run_sim
 
     if args.no_wait and args.lockstep:

@@ -20,7 +20,7 @@ import numpy.typing as npt
 
 from boids_env.config import EnvConfig
 from boids_env.eval.episode import bind_policy, env_fields_for
-from boids_env.eval.ros.protocol import EpisodeInfo, Tick, finite_commands, is_continuation
+from boids_env.eval.graph.protocol import EpisodeInfo, Tick, finite_commands, is_continuation
 from boids_env.observations import INITIAL_HEADING, Crowd, Observer
 from boids_env.policies.base import Policy
 from boids_env.policies.registry import load_policy, split_preset

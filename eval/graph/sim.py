@@ -1,7 +1,7 @@
 """The simulator node's logic, transport-free: the pymunk world
 (:class:`~boids_env.environment.BoidsEnv`) stepped tick by tick, each tick handed to a
 :class:`SimTransport` to publish, the followers' commands collected on a
-:class:`~boids_env.eval.ros.protocol.CommandBoard` (lockstep or real time).
+:class:`~boids_env.eval.graph.protocol.CommandBoard` (lockstep or real time).
 
 Each episode's samples are recorded exactly as ``boids run`` records them, so its metrics,
 ``metrics.json`` and ``trajectory.parquet`` are those of an in-process run given the same
@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env.environment import BoidsEnv
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.protocol import (
     CLOCK_START,
     CMD_TIMEOUT,
     EPISODE_GAP,

@@ -36,9 +36,7 @@ from boids_env.eval.graph.controller import (
     ControllerOptions,
     controller_policy,
 )
-from boids_env.eval.ros import reconfigure
-from boids_env.eval.ros.messages import Messages, publisher
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.protocol import (
     CONFIG_PARAM,
     EPISODE_PARAM,
     QUEUE_SIZE,
@@ -49,6 +47,8 @@ from boids_env.eval.ros.protocol import (
     odom_topic,
     pedestrian_topic,
 )
+from boids_env.eval.ros import reconfigure
+from boids_env.eval.ros.messages import Messages, publisher
 
 __all__ = ["SYNC_MODES", "ControllerNode", "ControllerOptions", "controller_policy",
            "run_controller"]

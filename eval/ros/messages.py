@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.eval.ros.protocol import MAP_FRAME, pedestrian_frame, robot_frame
+from boids_env.eval.graph.protocol import MAP_FRAME, pedestrian_frame, robot_frame
 from boids_env.eval.ros.rospy_path import import_rospy
 
 FloatArray = npt.NDArray[np.float64]

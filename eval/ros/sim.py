@@ -9,7 +9,7 @@ sim subscribes to it instead, for a teleop; a person walked by the pedestrian mo
 none). With a crowd (``--crowd N``), every pedestrian's ``/pedestrian_k/odom`` (latched,
 nav_msgs/Odometry in ``map``, child ``pedestrian_k``, its velocity in the twist) with each
 tick: what the followers observe. Subscribes to every follower's
-``/robot_k/cmd_vel``. See :mod:`boids_env.eval.ros.protocol` for the timing (lockstep or real
+``/robot_k/cmd_vel``. See :mod:`boids_env.eval.graph.protocol` for the timing (lockstep or real
 time, the 0.5 s command timeout, stamps and episodes).
 
 The simulation itself (stepping, lockstep, recording) is
@@ -23,16 +23,7 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from boids_env.eval.graph.sim import (
-    SimCore,
-    SimEpisode,
-    SimFrame,
-    SimOptions,
-    run_episodes,
-    write_outputs,
-)
-from boids_env.eval.ros.messages import Messages, publisher
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.protocol import (
     CLOCK_START,
     CONFIG_PARAM,
     EPISODE_PARAM,
@@ -44,6 +35,15 @@ from boids_env.eval.ros.protocol import (
     pedestrian_topic,
     period_ns,
 )
+from boids_env.eval.graph.sim import (
+    SimCore,
+    SimEpisode,
+    SimFrame,
+    SimOptions,
+    run_episodes,
+    write_outputs,
+)
+from boids_env.eval.ros.messages import Messages, publisher
 
 __all__ = ["SimEpisode", "SimNode", "SimOptions", "run_sim", "write_outputs"]
 

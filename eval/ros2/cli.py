@@ -99,8 +99,8 @@ def _sim_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> 
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
+    from boids_env.eval.graph.protocol import CMD_TIMEOUT
     from boids_env.eval.graph.sim import SimOptions
-    from boids_env.eval.ros.protocol import CMD_TIMEOUT
     from boids_env.extras import require
 
     if args.no_wait and args.lockstep:

@@ -19,7 +19,7 @@ from typing import Any
 
 from boids_env.config import EnvConfig
 from boids_env.eval.graph.controller import ControllerCore, ControllerOptions, controller_policy
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.protocol import (
     CONFIG_TOPIC,
     EPISODE_TOPIC,
     EpisodeInfo,

@@ -33,8 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from boids_env.eval.graph.sim import SimCore, SimEpisode, SimFrame, SimOptions, run_episodes
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.protocol import (
     CLOCK_START,
     CONFIG_TOPIC,
     EPISODE_TOPIC,
@@ -49,6 +48,7 @@ from boids_env.eval.ros.protocol import (
     pedestrian_topic,
     period_ns,
 )
+from boids_env.eval.graph.sim import SimCore, SimEpisode, SimFrame, SimOptions, run_episodes
 from boids_env.eval.ros2.options import TWIST, Ros2Options
 from boids_env.eval.ros2.wire import LATCHED
 from boids_env.rosbag import PEOPLE_TOPIC, PERSON_TOPIC

@@ -209,7 +209,7 @@ class _Loopback:
     name = "loopback"
 
     def __init__(self, controller_core):
-        from boids_env.eval.ros.protocol import TickAssembler
+        from boids_env.eval.graph.protocol import TickAssembler
 
         self.controller = controller_core
         self.assembler = TickAssembler(controller_core.robots, controller_core.pedestrians)

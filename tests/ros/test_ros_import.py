@@ -27,7 +27,7 @@ def test_importing_the_package_and_the_ros_modules_needs_no_rospy():
         import sys
         import boids_env, boids_env.eval.cli, boids_env.train.cli
         import boids_env.eval.ros.sim, boids_env.eval.ros.controller, boids_env.eval.ros.bags
-        import boids_env.eval.ros.protocol, boids_env.eval.ros.reconfigure
+        import boids_env.eval.graph.protocol, boids_env.eval.ros.reconfigure
         print(sorted(m for m in ("rospy", "genpy", "rosgraph") if m in sys.modules))
     """)
     assert out.strip() == "[]", out

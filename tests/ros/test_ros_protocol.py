@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from boids_env.config import ReynoldsParams, reynolds_params
-from boids_env.eval.ros import reconfigure
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.protocol import (
     CommandBoard,
     EpisodeInfo,
     TickAssembler,
     is_continuation,
     stamp_ns,
 )
+from boids_env.eval.ros import reconfigure
 
 
 def test_lockstep_board_counts_only_answers_to_the_current_tick():
