@@ -18,16 +18,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.commands import commands_from_actions, filtered, native_actions, safe_commands
 from boids_env.config import EnvConfig
 from boids_env.eval.episode import bind_policy, env_fields_for
 from boids_env.eval.graph.protocol import EpisodeInfo, Tick, finite_commands, is_continuation
 from boids_env.observations import INITIAL_HEADING, Crowd, Observer
 from boids_env.policies.base import Policy
 from boids_env.policies.registry import load_policy, split_preset
-from boids_env.vectors import clip_speed
 from boids_env.world.realism import StaleObservations
 from boids_env.world.robots import make_model, quaternion_headings, to_world
-from boids_env.world.safety import filter_commands, people_around
 from boids_env.world.scenario import holding
 
 SYNC_MODES = ("stamp", "rate")
@@ -192,50 +191,25 @@ class ControllerCore:
             obs = self.stale(obs, self.observer)  # its sight flags stale with their rows
         actions = self.policy.act(dict(zip(self.agents, obs, strict=True)))
         raw = np.array([actions[a] for a in self.agents], dtype=np.float64)
-        filtered = (self.config.safety.safety_filter
-                    and self.config.observation.action != "unicycle")
-        if filtered:  # held still there, during the start-up hold, as the env holds them
-            commands = self._filtered(raw, tick, velocities, headings)
-        elif headings is None:
-            # as the env parses them: float64, then into the world frame (no speed clip here:
-            # the robot, or the simulator, limits the speed, as the env does)
-            commands = self.observer.to_world(raw)
-        elif self.config.observation.action == "unicycle":  # (v, ω) from the policy itself
-            w = self.config.world
-            commands = np.clip(raw, [-w.max_speed, -w.max_turn_rate],
-                               [w.max_speed, w.max_turn_rate])
-        else:  # the robot's driver: its law from the speed-limited world-frame command
-            world = clip_speed(self.observer.to_world(raw), self.config.world.max_speed)
-            commands = self.model.native(world, headings[1:])
-        if self._holding(tick.stamp_ns) and not filtered:
-            commands = np.zeros_like(commands)
+        cfg = self.config
+        # As the env turns actions into commands (boids_env.commands). Holonomic robots
+        # without the filter get no speed limit here: the robot, or the simulator, limits
+        # the speed once, as the env does; the filter and a driver's law need it first.
+        commands = commands_from_actions(raw, cfg, self.observer.to_world,
+                                         hold=self._holding(tick.stamp_ns),
+                                         limit=headings is not None or filtered(cfg))
+        # The leader's odometry velocity stands for the leader's command, which the
+        # in-process env knows and a controller node does not; the people are kept off at
+        # their odometry velocities (the env uses their commands).
+        commands = safe_commands(commands, cfg, cfg.scene, tick.positions, velocities,
+                                 velocities[0], tick.crowd_positions, tick.crowd_velocities)
+        if headings is not None and not native_actions(cfg):
+            commands = self.model.native(commands, headings[1:])  # the robot driver's law
         # a non-finite odometry poisons its neighbours' commands: they go out as a stop
         commands, bad = finite_commands(commands)
         self.nonfinite += bad
         self.answered += 1
         return commands
-
-    def _filtered(self, raw: np.ndarray, tick: Tick, velocities: np.ndarray,
-                  headings: np.ndarray | None) -> np.ndarray:
-        """The commands through the safety filter, as the env filters them in-process when
-        the policy's env fields ask for it (``learned-scenes``, ``learned-buildings``): the
-        speed-limited world-frame commands (held still during the start-up hold), filtered
-        against every robot's odometry and the scene, then, for robots with a heading, the
-        driver's law. The leader's odometry velocity stands for the leader's command, which
-        the in-process env knows and a controller node does not. A person leading and the
-        pedestrians are kept off as the env keeps them (at their own width), at their
-        odometry velocities (the env uses their commands)."""
-        w, sc = self.config.world, self.config.scenario
-        world = clip_speed(self.observer.to_world(raw), w.max_speed)
-        if self._holding(tick.stamp_ns):
-            world = np.zeros_like(world)
-        world = filter_commands(world, tick.positions, velocities, velocities[0],
-                                w.robot_radius, w.max_speed, self.config.scene,
-                                self.config.safety,
-                                people_around(tick.positions[0], velocities[0],
-                                              tick.crowd_positions, tick.crowd_velocities,
-                                              sc.person_radius, sc.leader != "robot"))
-        return world if headings is None else self.model.native(world, headings[1:])
 
     def world_forces(self) -> dict[str, np.ndarray]:
         """The policy's rule forces of the last answer in the world frame (empty for a policy
