@@ -6,14 +6,19 @@ env's own builder, with the env's config: the same observations as in-process). 
 heading (e.g. a TurtleBot3) read REP 105 odometry (oriented, the twist in the robot's frame)
 and are answered with their own (linear.x, angular.z) from their driver's law, as a real
 TurtleBot3 takes it. ``boids ros controller`` (ROS 1) and ``boids ros2 controller`` (ROS 2
-over Zenoh) are this class under two transports.
+over Zenoh) are this class under two transports (:class:`ControllerTransport`): they
+subscribe to the odometry (:meth:`ControllerCore.odometry`) and publish the answers, and
+:meth:`ControllerCore.spin` runs the loop.
 """
 
 from __future__ import annotations
 
+import json
+import queue
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -21,7 +26,13 @@ import numpy.typing as npt
 from boids_env.commands import commands_from_actions, filtered, native_actions, safe_commands
 from boids_env.config import EnvConfig
 from boids_env.eval.episode import bind_policy, env_fields_for
-from boids_env.eval.graph.protocol import EpisodeInfo, Tick, finite_commands, is_continuation
+from boids_env.eval.graph.protocol import (
+    EpisodeInfo,
+    Tick,
+    TickAssembler,
+    finite_commands,
+    is_continuation,
+)
 from boids_env.observations import INITIAL_HEADING, Crowd, Observer
 from boids_env.policies.base import Policy
 from boids_env.policies.registry import load_policy, split_preset
@@ -78,6 +89,55 @@ class ControllerOptions:
         split_preset(self.policy, self.preset)  # a bad spec or preset fails before ROS starts
 
 
+class ControllerTransport(Protocol):
+    """What a middleware provides to :meth:`ControllerCore.spin`."""
+
+    def stopped(self) -> bool:
+        """Whether the node is shutting down."""
+
+    def answer(self, tick: Tick) -> Any:
+        """Publishes the followers' commands for one tick (:meth:`ControllerCore.answer`'s),
+        and whatever goes with them (the force markers)."""
+
+
+def base_config(options: ControllerOptions, name: str, read: Callable[[], str | None],
+                stopped: Callable[[], bool], *, source: str, command: str, poll: float,
+                where: str = "") -> EnvConfig:
+    """The odometry source's env config: ``options.env_fields``, else the simulator's, its
+    JSON as ``read`` returns it (None until it is there), waited for up to
+    ``options.config_wait`` seconds in steps of ``poll``.
+
+    Args:
+        options: how the node runs.
+        name: the node's name, for messages.
+        read: the simulator's config JSON, or None while there is none.
+        stopped: whether the node is shutting down (stops the wait).
+        source: what holds the config (``/boids/env_config parameter``), for messages.
+        command: the simulator's command (``boids ros sim``), for messages.
+        poll: seconds between two reads.
+        where: said after the wait in the error (the network looked at).
+
+    Raises:
+        ValueError: no config within ``config_wait`` seconds.
+    """
+    if options.env_fields:
+        return EnvConfig().replace(**dict(options.env_fields))
+    waited, announced = 0.0, False
+    while True:
+        text = read()
+        if text is not None:
+            return EnvConfig.from_dict(json.loads(text))
+        if waited >= options.config_wait or stopped():
+            raise ValueError(f"no {source} after {options.config_wait:g} s{where}: start "
+                             f"{command} first, or give the robots of another odometry "
+                             f"source (--robots N)")
+        if not announced and not options.quiet:
+            print(f"{name}: waiting for {source} ({command})", flush=True)
+            announced = True
+        time.sleep(poll)
+        waited += poll
+
+
 def controller_policy(options: ControllerOptions) -> Policy:
     """The policy the node runs (loaded before the node touches a middleware)."""
     overrides = {} if options.leader_weight is None else {
@@ -124,6 +184,42 @@ class ControllerCore:
         self.answered = 0
         self.nonfinite = 0
         """Commands sent as a stop because they were not finite (non-finite odometry)."""
+        self.assembler = TickAssembler(self.robots, self.pedestrians)
+        """The odometry's ticks: the robots', then the crowd's pedestrians' sources."""
+        self.ticks: queue.Queue[Tick] = queue.Queue()
+        """Complete ticks not answered yet (``sync="stamp"``)."""
+
+    def odometry(self, source: int, stamp: int, x: float, y: float, vx: float, vy: float,
+                 qz: float = 0.0, qw: float = 1.0) -> None:
+        """Takes one odometry message (any thread): robot ``source``'s, or pedestrian
+        ``source - robots``'s; with ``sync="stamp"`` a tick it completes is queued for
+        :meth:`spin`."""
+        tick = self.assembler.add(source, stamp, x, y, vx, vy, qz, qw)
+        if tick is not None and self.options.sync == "stamp":
+            self.ticks.put(tick)
+
+    def spin(self, transport: ControllerTransport) -> int:
+        """Answers ticks through ``transport`` until it stops or ``max_ticks`` are answered;
+        returns how many were. ``sync="stamp"``: each complete tick once, in order;
+        ``"rate"``: every ``dt`` of wall time, the latest odometry of every robot."""
+        limit = self.options.max_ticks
+        deadline = time.monotonic()
+        last: int | None = None
+        while not transport.stopped() and (limit is None or self.answered < limit):
+            if self.options.sync == "stamp":
+                try:
+                    tick = self.ticks.get(timeout=0.1)
+                except queue.Empty:
+                    continue
+            else:
+                deadline += self.dt
+                time.sleep(max(0.0, deadline - time.monotonic()))
+                snap = self.assembler.snapshot()
+                if snap is None or snap.stamp_ns == last:
+                    continue
+                tick, last = snap, snap.stamp_ns
+            transport.answer(tick)
+        return self.answered
 
     @property
     def leader_hidden(self) -> npt.NDArray[np.bool_] | None:

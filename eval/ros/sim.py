@@ -19,7 +19,6 @@ episode's samples are recorded exactly as ``boids run`` records them.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -32,6 +31,7 @@ from boids_env.eval.graph.protocol import (
     cmd_topic,
     config_json,
     odom_topic,
+    odometry_topics,
     pedestrian_topic,
     period_ns,
 )
@@ -47,10 +47,9 @@ from boids_env.eval.ros.messages import Messages, publisher
 
 __all__ = ["SimEpisode", "SimNode", "SimOptions", "run_sim", "write_outputs"]
 
-WARN_EVERY = 5.0
-"""Seconds between the notes of a simulator waiting for its graph."""
 POLL = 0.05
-"""Seconds between checks of the graph while waiting for nodes to connect."""
+"""Seconds between checks of the graph while waiting for nodes to connect (each asks the
+master and the nodes over XML-RPC)."""
 
 
 class SimNode:
@@ -107,6 +106,16 @@ class SimNode:
                                           callback_args=k - 1, queue_size=QUEUE_SIZE,
                                           tcp_nodelay=True)
                          for k in range(1, self.robots)]
+        self._subscriptions = {cmd_topic(k): sub for k, sub in enumerate(self.cmd_subs, 1)}
+        self._publishers = {pub.resolved_name: pub for pub in (
+            self.clock_pub, self.tf_pub, *self.odom_pubs, *self.pedestrian_pubs,
+            *([self.leader_pub] if self.leader_pub is not None else []))}
+        self.poll = POLL
+        # a recorder (rosbag record -a) needs the commands too: boids ros metrics reads them
+        self.wait_for_topics = [*odometry_topics(self.robots, core.pedestrians),
+                                *(cmd_topic(k) for k in range(0 if self.leader_pub else 1,
+                                                              self.robots)),
+                                "/clock", "/tf"]
 
     # ------------------------------------------------------------------------ callbacks
     def _on_command(self, msg: Any, index: int) -> None:
@@ -119,40 +128,26 @@ class SimNode:
             self.rospy.logwarn_throttle(5.0, f"{self.name}: dropped a non-finite command for "
                                         f"the leader")
 
-    # -------------------------------------------------------------------------- waiting
-    def controllers(self) -> list[str]:
-        """Nodes publishing the followers' commands."""
-        names = {c.callerid_pub for sub in self.cmd_subs for c in sub.impl.connections}
-        return sorted(names)
+    # ---------------------------------------------------------------------------- graph
+    def publishers(self, topic: str) -> set[str]:
+        """The nodes connected to this node's subscription to ``topic``."""
+        sub = self._subscriptions.get(topic)
+        return set() if sub is None else {c.callerid_pub for c in sub.impl.connections}
 
-    def _graph_missing(self) -> list[str]:
-        """What tick 0 still waits for (empty when everything is connected)."""
-        missing = []
-        if self.options.lockstep or self.options.wait_controller:
-            idle = [cmd_topic(k + 1) for k, sub in enumerate(self.cmd_subs)
-                    if sub.get_num_connections() == 0]
-            if idle:
-                missing.append(f"a publisher on {', '.join(idle[:3])}"
-                               + (f" (+{len(idle) - 3})" if len(idle) > 3 else ""))
-            else:  # the controllers must also receive every odometry from tick 0 on
-                for node in self.controllers():
-                    deaf = [p.resolved_name for p in self.odom_pubs + self.pedestrian_pubs
-                            if node not in {c.endpoint_id for c in p.impl.connections}]
-                    if deaf:
-                        missing.append(f"{node} to subscribe to {len(deaf)} odometry topics")
-        if self.options.wait_for:
-            wanted = {odom_topic(k) for k in range(self.robots)}
-            wanted |= {pedestrian_topic(k) for k in range(self.core.pedestrians)}
-            wanted |= {cmd_topic(k) for k in range(0 if self.leader_pub else 1, self.robots)}
-            wanted |= {"/clock", "/tf"}
-            links = self._outbound_links(wanted)
-            for node in self.options.wait_for:
-                node = "/" + node.strip("/")
-                absent = [t for t in wanted if not links.get(t) or any(
-                    node not in peers for peers in links[t])]
-                if absent:
-                    missing.append(f"{node} on {len(absent)} topics")
-        return missing
+    def receivers(self, topics: Sequence[str]) -> dict[str, set[str]]:
+        """For each topic, the nodes every publisher on it is connected to: this node's own
+        publishers answer themselves, others through :meth:`_outbound_links`."""
+        foreign = {t for t in topics if t not in self._publishers}
+        links = self._outbound_links(foreign) if foreign else {}
+        out = {}
+        for topic in topics:
+            pub = self._publishers.get(topic)
+            if pub is not None:
+                out[topic] = {c.endpoint_id for c in pub.impl.connections}
+            else:
+                peers = links.get(topic) or [set()]
+                out[topic] = set.intersection(*peers)
+        return out
 
     def _outbound_links(self, topics: set[str]) -> dict[str, list[set[str]]]:
         """For each topic, one set per publisher: the nodes that publisher is connected to.
@@ -183,34 +178,12 @@ class SimNode:
         return {topic: [{peer for t, peer in bus[node] if t == topic} for node in nodes]
                 for topic, nodes in by_topic.items()}
 
-    def wait_ready(self, core: SimCore) -> None:
-        """Holds tick 0 until the controller and the ``wait_for`` nodes are connected, the
-        latched ``/clock`` running meanwhile at real time in steps of ``dt`` (from
-        :data:`CLOCK_START`); the first episode then starts at the next step."""
-        last_note = -WARN_EVERY
-        start = time.monotonic()
-        period = period_ns(self.dt)
-        shown = -1
-        while not self.rospy.is_shutdown():
-            now = time.monotonic()
-            steps = int((now - start) / self.dt)
-            if steps != shown:
-                self.clock_pub.publish(self.msgs.clock(core.next_start_ns + steps * period))
-                shown = steps
-            missing = self._graph_missing()
-            if not missing:
-                break
-            if now - last_note >= WARN_EVERY and not self.options.quiet:
-                print(f"{self.name}: waiting for {'; '.join(missing)} "
-                      f"({now - start:.0f} s)", flush=True)
-                last_note = now
-            time.sleep(POLL)
-        time.sleep(self.options.settle)
-        core.next_start_ns += (shown + 1) * period
-
     # ------------------------------------------------------------------ the transport
-    def shutdown_requested(self) -> bool:
+    def stopped(self) -> bool:
         return bool(self.rospy.is_shutdown())
+
+    def publish_clock(self, stamp_ns: int) -> None:
+        self.clock_pub.publish(self.msgs.clock(stamp_ns))
 
     def announce(self, info: EpisodeInfo) -> None:
         self.rospy.set_param(EPISODE_PARAM, info.to_json())
