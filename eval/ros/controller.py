@@ -46,7 +46,8 @@ from boids_env.eval.graph.protocol import (
     pedestrian_topic,
 )
 from boids_env.eval.ros import reconfigure
-from boids_env.eval.ros.messages import Messages, publisher
+from boids_env.eval.ros.messages import publisher, ros1_messages
+from boids_env.eval.ros.rospy_path import import_rospy
 
 __all__ = ["SYNC_MODES", "ControllerNode", "ControllerOptions", "controller_policy",
            "run_controller"]
@@ -69,8 +70,7 @@ class ControllerNode:
     def __init__(self, options: ControllerOptions, argv: Sequence[str] | None = None) -> None:
         self.options = options
         self.policy = controller_policy(options)
-        self.msgs = Messages()
-        rospy = self.rospy = self.msgs.rospy
+        rospy = self.rospy = import_rospy()
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
         from visualization_msgs.msg import MarkerArray
@@ -83,6 +83,7 @@ class ControllerNode:
                                           self._episode_param)
         self.config, self.observer, self.model = core.config, core.observer, core.model
         self.robots, self.dt, self.agents = core.robots, core.dt, core.agents
+        self.msgs = ros1_messages(rospy, self.config.world.robot_radius)
         rospy.set_param("~policy", options.policy)
         self.cmd_pubs = [publisher(rospy, cmd_topic(k), Twist) for k in range(1, self.robots)]
         self.marker_pub = (rospy.Publisher("~markers", MarkerArray, queue_size=10)
@@ -195,10 +196,12 @@ class ControllerNode:
         heading = self.core.heading
         for pub, command in zip(self.cmd_pubs, commands, strict=True):
             pub.publish(self.msgs.twist(*self.core.twist_fields(command, heading)))
-        world = self.core.world_forces()
-        if world and self.marker_pub is not None:
-            self.marker_pub.publish(self.msgs.force_markers(self.msgs.time(tick.stamp_ns),
-                                                            tick.positions, world))
+        # built only for a subscriber (RViz): rospy drops what nobody receives anyway
+        if self.marker_pub is not None and self.marker_pub.get_num_connections():
+            world = self.core.world_forces()
+            if world:
+                self.marker_pub.publish(self.msgs.force_markers(tick.stamp_ns, 0,
+                                                                tick.positions[1:], world))
         return commands
 
     def stopped(self) -> bool:

@@ -22,10 +22,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from boids_env.eval.graph.messages import crowd_odometry, robot_odometry, transforms
 from boids_env.eval.graph.protocol import (
     CLOCK_START,
     CONFIG_PARAM,
     EPISODE_PARAM,
+    MAP_FRAME,
     QUEUE_SIZE,
     EpisodeInfo,
     cmd_topic,
@@ -34,6 +36,7 @@ from boids_env.eval.graph.protocol import (
     odometry_topics,
     pedestrian_topic,
     period_ns,
+    robot_frame,
 )
 from boids_env.eval.graph.sim import (
     SimCore,
@@ -43,7 +46,8 @@ from boids_env.eval.graph.sim import (
     run_episodes,
     write_outputs,
 )
-from boids_env.eval.ros.messages import Messages, publisher
+from boids_env.eval.ros.messages import publisher, ros1_messages
+from boids_env.eval.ros.rospy_path import import_rospy
 
 __all__ = ["SimEpisode", "SimNode", "SimOptions", "run_sim", "write_outputs"]
 
@@ -68,8 +72,8 @@ class SimNode:
         self.robots, self.dt, self.agents = core.robots, core.dt, core.agents
         self.external, self.heading = core.external, core.heading
         config = self.config
-        self.msgs = Messages()
-        rospy = self.rospy = self.msgs.rospy
+        rospy = self.rospy = import_rospy()
+        self.msgs = ros1_messages(rospy, config.world.robot_radius)
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
         from rosgraph_msgs.msg import Clock
@@ -85,11 +89,11 @@ class SimNode:
         # the scene as map_server publishes a map: latched, once
         from nav_msgs.msg import MapMetaData, OccupancyGrid
 
-        grid, meta = self.msgs.occupancy_grid(config.scene.occupancy(), period_ns(CLOCK_START))
+        grid = self.msgs.occupancy_grid(period_ns(CLOCK_START), config.scene.occupancy())
         self.map_pub = publisher(rospy, "/map", OccupancyGrid, latch=True)
         self.map_meta_pub = publisher(rospy, "/map_metadata", MapMetaData, latch=True)
         self.map_pub.publish(grid)
-        self.map_meta_pub.publish(meta)
+        self.map_meta_pub.publish(grid.info)
         self.tf_pub = publisher(rospy, "/tf", TFMessage)
         self.odom_pubs = [publisher(rospy, odom_topic(k), Odometry, latch=True)
                           for k in range(self.robots)]
@@ -110,6 +114,8 @@ class SimNode:
         self._publishers = {pub.resolved_name: pub for pub in (
             self.clock_pub, self.tf_pub, *self.odom_pubs, *self.pedestrian_pubs,
             *([self.leader_pub] if self.leader_pub is not None else []))}
+        self._parents = [MAP_FRAME] * self.robots  # the study's frames: map -> robot_k
+        self._children = [robot_frame(k) for k in range(self.robots)]
         self.poll = POLL
         # a recorder (rosbag record -a) needs the commands too: boids ros metrics reads them
         self.wait_for_topics = [*odometry_topics(self.robots, core.pedestrians),
@@ -191,19 +197,17 @@ class SimNode:
     def publish(self, frame: SimFrame) -> None:
         """Publishes one tick: ``/clock``, every ``/robot_k/odom``, every
         ``/pedestrian_k/odom`` of a crowd, ``/tf`` and the scripted leader's ``cmd_vel``."""
-        stamp = self.msgs.time(frame.stamp_ns)
-        self.clock_pub.publish(self.msgs.Clock(clock=stamp))
-        q = frame.quaternions
-        for k, pub in enumerate(self.odom_pubs):
-            pub.publish(self.msgs.odometry(k, stamp, frame.positions[k], frame.velocities[k],
-                                           None if q is None else q[k], frame.turn_rates[k]))
-        if frame.crowd is not None:
-            for k, pub in enumerate(self.pedestrian_pubs):
-                pub.publish(self.msgs.pedestrian_odometry(
-                    k, stamp, frame.crowd.positions[k], frame.crowd.velocities[k]))
-        self.tf_pub.publish(self.msgs.transforms(stamp, frame.positions, q))
+        m, parents, children = self.msgs, self._parents, self._children
+        self.clock_pub.publish(m.clock(frame.stamp_ns))
+        for pub, msg in zip(self.odom_pubs, robot_odometry(m, frame, parents, children),
+                            strict=True):
+            pub.publish(msg)
+        for pub, msg in zip(self.pedestrian_pubs, crowd_odometry(m, frame), strict=False):
+            pub.publish(msg)  # none without a crowd
+        if self.tf_pub.get_num_connections():  # rospy drops what nobody receives anyway
+            self.tf_pub.publish(transforms(m, frame, parents, children))
         if self.leader_pub is not None and frame.leader_command is not None:
-            self.leader_pub.publish(self.msgs.twist(*frame.leader_command))
+            self.leader_pub.publish(m.twist(*frame.leader_command))
 
     def run_episode(self, index: int) -> SimEpisode:
         """Runs one whole episode (seed ``options.seed + index``) and returns it."""

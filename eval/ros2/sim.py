@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from boids_env.eval.graph.messages import crowd_odometry, robot_odometry, transforms
 from boids_env.eval.graph.protocol import (
     CLOCK_START,
     CONFIG_TOPIC,
@@ -44,7 +45,6 @@ from boids_env.eval.graph.protocol import (
     odom_frame,
     odom_topic,
     odometry_topics,
-    pedestrian_frame,
     pedestrian_topic,
     period_ns,
 )
@@ -193,13 +193,10 @@ class Ros2Sim:
     def publish(self, frame: SimFrame) -> None:
         ns, m, q = frame.stamp_ns, self.msgs, frame.quaternions
         self.clock_pub.publish(m.clock(ns))
-        for k, pub in enumerate(self.odom_pubs):
-            header = m.header(ns, 0, self._parents[k])
-            pub.publish(m.odometry(header, k, frame.positions[k], frame.velocities[k], 0.0,
-                                   float(frame.turn_rates[k]), child=self._children[k],
-                                   quaternion=None if q is None else (q[k, 0], q[k, 1])))
-        self.tf_pub.publish(m.transforms(ns, 0, self._parents, self._children,
-                                         frame.positions, q))
+        for pub, msg in zip(self.odom_pubs,
+                            robot_odometry(m, frame, self._parents, self._children), strict=True):
+            pub.publish(msg)
+        self.tf_pub.publish(transforms(m, frame, self._parents, self._children))
         self._publish_people(frame)
         if self.leader_pub is not None and frame.leader_command is not None:
             twist = m.twist(*frame.leader_command)
@@ -221,10 +218,8 @@ class Ros2Sim:
     def _publish_people(self, frame: SimFrame) -> None:
         """The crowd's odometry, the person's, and the people's markers."""
         ns, m, crowd = frame.stamp_ns, self.msgs, frame.crowd
-        if crowd is not None:
-            for k, pub in enumerate(self.pedestrian_pubs):
-                pub.publish(m.odometry(m.header(ns, 0, MAP_FRAME), k, crowd.positions[k],
-                                       crowd.velocities[k], 0.0, child=pedestrian_frame(k)))
+        for pub, msg in zip(self.pedestrian_pubs, crowd_odometry(m, frame), strict=False):
+            pub.publish(msg)  # none without a crowd
         person = None
         if self.person_pub is not None:
             person = frame.positions[0]

@@ -162,6 +162,13 @@ class RosGraph:
 
 
 @pytest.fixture
+def rospy():
+    """ROS 1's rospy, its message packages checked (no master)."""
+    _ros_or_skip()
+    return import_rospy()
+
+
+@pytest.fixture
 def ros(tmp_path):
     """A fresh roscore on a free port, torn down (with every node) after the test."""
     _ros_or_skip()
