@@ -15,17 +15,16 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from boids_env import kernels, metrics
+from boids_env.commands import commands_from_actions, native_actions, safe_commands
 from boids_env.config import EnvConfig
 from boids_env.dict_api import BoidsAECWrapper, parse_actions
 from boids_env.episode_state import Episode, episode_config
 from boids_env.fused import Fused
 from boids_env.observations import Crowd, Observer
 from boids_env.rewards import REWARD_INFO_KEYS
-from boids_env.vectors import clip_speed_reference
 from boids_env.world import scenario
 from boids_env.world.leader import ExternalLeader, Leader
 from boids_env.world.robots import RobotModel, odometry_velocities
-from boids_env.world.safety import filter_commands, people_around
 from boids_env.world.space import Snapshot, World
 
 AgentID = str
@@ -324,41 +323,30 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         return episode.rewards.terms(episode.world), self._observe()
 
     def _before_physics(self, actions: npt.NDArray[np.float64]) -> _Plan:
-        """The step's commands from the checked actions: the speed limit, the start-up hold,
-        the crowd's walk, the leader's command, the safety filter (nothing stepped yet)."""
+        """The step's commands from the checked actions (:mod:`boids_env.commands`: the
+        robot's limits, the start-up hold, a NaN or inf refused before anything moves), the
+        crowd's walk, the leader's command, the safety filter (nothing stepped yet)."""
         world, leader = self._world, self._leader
         assert world is not None and leader is not None
         cfg = self.episode_config
-        native = cfg.observation.action == "unicycle"
-        if native:  # (v, ω) within the robot's limits; the leader's driver turns its own
-            self._finite(actions)
-            wc = cfg.world
-            high = np.array([wc.max_speed, wc.max_turn_rate], dtype=np.float64)
-            commands = np.clip(actions, -high, high)  # float64 limits, not the Box's float32
-        else:
-            commands = self._speed_limited(actions, cfg.world.max_speed)
         sc = cfg.scenario
         time = world.time
-        if sc.startup_hold and scenario.holding(time, sc.startup_time):
-            commands = np.zeros_like(commands)
+        commands = commands_from_actions(
+            actions, cfg, self._observer.to_world, check=self._finite,
+            hold=sc.startup_hold and scenario.holding(time, sc.startup_time))
         crowd = None
         if self._people is not None:
             self._people.advance(time)
             crowd = (self._people.pedestrians - world.pedestrian_positions) / cfg.world.dt
         full = np.empty((len(commands) + 1, 2))
         full[0] = leader.command(time, world.positions[0])
-        if cfg.safety.safety_filter and not native:
-            commands = filter_commands(commands, world.positions, world.velocities, full[0],
-                                       cfg.world.robot_radius, cfg.world.max_speed,
-                                       self._scene, cfg.safety,
-                                       people_around(world.positions[0], full[0],
-                                                     None if crowd is None
-                                                     else world.pedestrian_positions,
-                                                     crowd, cfg.scenario.person_radius,
-                                                     cfg.scenario.leader != "robot"))
+        commands = safe_commands(commands, cfg, self._scene, world.positions, world.velocities,
+                                 full[0], None if crowd is None else world.pedestrian_positions,
+                                 crowd)
         x, y = full[0].tolist()  # the stored command (two floats, one call)
         self._still_steps = 0 if x != 0.0 or y != 0.0 else self._still_steps + 1
-        if native:
+        native = native_actions(cfg)
+        if native:  # the followers' (v, ω) as they come; the leader's driver makes its own
             full[0] = world.model.native(full[:1], world.heading_vectors[:1])[0]
         full[1:] = commands
         return _Plan(full, crowd, native)
@@ -398,25 +386,12 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
 
     def _finite(self, actions: npt.NDArray[np.float64]) -> None:
         """Raises the clear error for a NaN or inf in the checked actions (F, 2), naming
-        the followers that sent one."""
+        the followers that sent one (:func:`~boids_env.commands.commands_from_actions`
+        calls it where the actions may hold one)."""
         if not np.isfinite(actions).all():
             bad = [a for a, row in zip(self.agents, actions, strict=True)
                    if not np.isfinite(row).all()]
             raise ValueError(f"actions must be finite; NaN or inf from {bad}")
-
-    def _speed_limited(self, actions: npt.NDArray[np.float64], max_speed: float
-                       ) -> npt.NDArray[np.float64]:
-        """The world-frame commands of the actions (F, 2), their speed limited, after
-        refusing a NaN or inf (:meth:`_finite`): the speed limit's kernel sees every
-        speed, so the finite commands of a step cost no check of their own."""
-        commands = self._observer.to_world(actions)
-        compiled = kernels.compiled()
-        if compiled is not None and commands.flags.c_contiguous:
-            status, out = compiled.clip_speed(commands, float(max_speed))
-            if status != 2:  # 2: a speed that is not finite, from a NaN, inf or overflow
-                return out
-        self._finite(actions)
-        return clip_speed_reference(commands, max_speed)
 
     def _observe(self) -> npt.NDArray[np.float32]:
         episode = self._episode

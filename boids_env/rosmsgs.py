@@ -2,11 +2,13 @@
 as the original system recorded them, plus what RViz and Foxglove need to show the flock as
 the study's Fig. 5 did: ``/clock``, ``/tf`` (REP 105: ``map`` -> ``robot_k/odom`` ->
 ``robot_k/base_footprint``), robot markers, the rule forces as marker arrows and the leader's
-scripted path; and what the live ROS 2 nodes publish (:mod:`boids_env.eval.ros2`): one module
-builds the messages of the bags and of the live topics alike.
+scripted path; and what the live ROS 1 and ROS 2 nodes publish (:mod:`boids_env.eval.graph.
+messages`): one module builds the messages of the bags and of the live topics alike, with
+:mod:`boids_env.style`'s look.
 
 The same builders serve ROS 1 (Noetic definitions) and ROS 2 (Humble definitions, which are
-Jazzy's on the wire for every type used here) through rosbags' type stores.
+Jazzy's on the wire for every type used here) through rosbags' type stores, and the live ROS 1
+nodes through a store of rospy's classes (:class:`boids_env.eval.ros.messages.RospyStore`).
 """
 
 from __future__ import annotations

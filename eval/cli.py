@@ -6,136 +6,40 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import Any
 
-from boids_env.config import PATHS, EnvConfig
+from boids_env.config import EnvConfig
+from boids_env.eval.flags import (
+    POLICY_HELP,
+    TRUST_HELP,
+    add_env_args,
+    add_live_args,
+    env_fields,
+    live_options,
+    policy_extras,
+    reynolds_preset,
+)
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
+from boids_env.eval.ros.cli import add_ros_parser
+from boids_env.eval.ros2.cli import add_ros2_parser
 from boids_env.extras import require
 from boids_env.policies.reynolds_params import PRESETS
 from boids_env.world.realism import REALISMS
-from boids_env.world.robots import PRESETS as ROBOTS
-from boids_env.world.scenario import LEADERS
 
 MAX_FAST = 1000.0
 """Largest ``--fast`` speed-up of the live window (times real time)."""
-TRUST_HELP = ("load a model .zip through Stable-Baselines3's own load, which unpickles "
-              "objects stored in the file and so runs any code they carry: only for files you "
-              "trust. Without it a zip acts from its weights alone or is refused (see the "
-              "docs, how-to/training, 'Model files you did not make')")
-POLICY_HELP = ("reynolds (default), reynolds@boids_ros or reynolds@proxemic (a preset), "
-               "random, learned (the shipped PPO followers), learned-study (PPO on the study's "
-               "reward alone), learned-person (PPO following a person), learned-scenes (the "
-               "followers for a lab: walls, obstacles, standstills, the safety filter), "
-               "learned-buildings (floor plans, by route), learned-crowd (a person through "
-               "buildings among pedestrians), an SB3 "
-               "model .zip, or module:object (a Policy instance, class or factory)")
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
-    """Adds ``run``, ``eval``, ``report`` and ``ros`` to the ``boids`` subparsers."""
+    """Adds ``run``, ``eval``, ``report``, ``ros``, ``ros2``, ``scenes`` and ``select`` to the
+    ``boids`` subparsers."""
     _run_parser(sub)
     _eval_parser(sub)
     _report_parser(sub)
-    _ros_parser(sub)
-    from boids_env.eval.ros2.cli import add_ros2_parser
-
-    add_ros2_parser(sub, dict(
-        add_env_args=_add_env_args, env_fields=_env_fields, add_live_args=add_live_args,
-        live_options=live_options, policy_extras=_policy_extras,
-        reynolds_preset=reynolds_preset, add_controller_args=add_controller_args))
+    add_ros_parser(sub)
+    add_ros2_parser(sub)
     _scenes_parser(sub)
     _select_parser(sub)
-
-
-def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
-    """``"0,4 -4,4 -4,-4"`` -> ((0, 4), (-4, 4), (-4, -4)); a clear error otherwise."""
-    points = []
-    for item in text.replace(";", " ").split():
-        try:
-            x, y = (float(v) for v in item.split(","))
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"waypoints must be x,y pairs in metres separated by spaces (e.g. "
-                f"\"0,4 -4,4\"), got {item!r}") from None
-        points.append((x, y))
-    if not points:
-        raise argparse.ArgumentTypeError("waypoints needs at least one x,y pair")
-    return tuple(points)
-
-
-def parse_point(text: str) -> tuple[float, float]:
-    """``"-4,0"`` -> (-4.0, 0.0); a clear error otherwise."""
-    points = parse_waypoints(text)
-    if len(points) != 1:
-        raise argparse.ArgumentTypeError(f"expected one x,y pair in metres, got {text!r}")
-    return points[0]
-
-
-def parse_setting(text: str) -> tuple[str, Any]:
-    """``"lidar_rays=16"`` -> ("lidar_rays", 16): a config field and a JSON value (a bare word
-    is a string); the config checks the field and the value."""
-    import json
-
-    name, eq, raw = text.partition("=")
-    if not eq or not name.strip():
-        raise argparse.ArgumentTypeError(f"--set takes FIELD=VALUE (e.g. lidar_rays=16), got "
-                                         f"{text!r}")
-    try:
-        value = json.loads(raw)
-    except ValueError:
-        value = raw
-    return name.strip(), value
-
-
-def _add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) -> None:
-    """The env-config flags :func:`_env_fields` reads (``boids run``, ``boids ros sim``)."""
-    p.add_argument("--robots", type=int, default=None, help="group size, leader included (13)")
-    p.add_argument("--robot", choices=sorted(ROBOTS), default=None,
-                   help="robot model: sphero (the study's, default), sphero_sprk, "
-                   "turtlebot3_burger, gritsbot; sets the leader speed (1.1 x its top speed) "
-                   "and start grid unless given")
-    p.add_argument("--leader-speed", type=float, default=None,
-                   help="m/s (0.55; with --robot, 1.1 x its top speed)")
-    p.add_argument("--scene", default=None,
-                   help="arena (the study's, default), small_room, doorway, corridor, pillars, "
-                   "lab, a generated floor plan floorplan:SEED, or a shapes file (.toml/.json); "
-                   "sets the scene's leader path and start (boids scenes lists them)")
-    p.add_argument("--map", default=None, metavar="YAML",
-                   help="a ROS map_server map (YAML + PGM/PNG) as the scene")
-    p.add_argument("--path", choices=PATHS, default=None, help=path_help)
-    p.add_argument("--waypoints", type=parse_waypoints, default=None,
-                   help='targets of the leader, "x,y x,y ..." in metres (world frame; e.g. '
-                   '"0,4 -4,4" or --waypoints=-4,4); implies --path waypoints')
-    p.add_argument("--start", type=parse_point, default=None, metavar="X,Y",
-                   help="where the leader starts (m; the scene's, or 0,0); the arena is "
-                   "centred on 0,0: --start -3,0 or --start=-3,0")
-    p.add_argument("--start-heading", type=float, default=None, metavar="DEG",
-                   help="direction the leader faces at the start; the grid lies behind it")
-    p.add_argument("--leader", choices=LEADERS, default=None,
-                   help="who leads: robot (the study's), person (a pedestrian walking the path "
-                   "with JuPedSim, people extra; with --path external, walked by hand) or "
-                   "trajectory (a recorded walk, --leader-trajectory)")
-    p.add_argument("--leader-trajectory", default=None, metavar="CSV",
-                   help="a recorded walk to replay as the leader: a CSV of t,x,y (s, m) on the "
-                   "episode's clock, or doorway_walk (shipped); implies --leader trajectory")
-    p.add_argument("--crowd", type=int, default=None, metavar="N",
-                   help="N pedestrians walking to random goals through the scene (people "
-                   "extra; 0)")
-    p.add_argument("--set", type=parse_setting, action="append", default=[],
-                   metavar="FIELD=VALUE", help="any env config field (e.g. lidar_rays=16, "
-                   "static_slots=2, obs_noise=0.02); repeatable")
-    p.add_argument("--seed", type=int, default=0, help=seed_help)
-    p.add_argument("--max-cycles", type=int, default=None, help="hard step limit")
-    p.add_argument("--arena-half-size", type=float, default=None, help="m (5.0)")
-    p.add_argument("--realism", choices=REALISMS, default=None,
-                   help="ROS/Stage realism: none (the ideal world, default) or ros (stall, "
-                   "staggered start, stale observations; docs: explanation/fidelity)")
-    p.add_argument("--no-wrap", action="store_true",
-                   help="the study's unwrapped alignment angle rule")
-    p.add_argument("--safety-filter", action="store_true",
-                   help="filter every follower's command so that it does not drive the robot "
-                   "into a wall, obstacle or robot (opt-in; docs: how-to/maps)")
 
 
 def _run_parser(sub: argparse._SubParsersAction) -> None:
@@ -147,7 +51,7 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
                        "empty or new unless --overwrite.")
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
     p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
-    _add_env_args(p, "leader path (square)", "seed (0)")
+    add_env_args(p, "leader path (square)", "seed (0)")
     p.add_argument("--leader-weight", type=float, default=None,
                    help="Reynolds leader weight (preset's: 1.0); reynolds policies only")
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
@@ -178,32 +82,6 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_run)
 
 
-def add_live_args(p: argparse.ArgumentParser) -> None:
-    """``--live foxglove`` and its options (``boids run``, ``boids ros2 sim``)."""
-    p.add_argument("--live", choices=("foxglove",), default=None,
-                   help="serve the running episode over Foxglove's WebSocket protocol "
-                   "(live extra): open ws://127.0.0.1:PORT in Foxglove")
-    p.add_argument("--live-port", type=int, default=8765,
-                   help="port of the live view (8765; 0: any free port)")
-    p.add_argument("--live-speed", type=float, default=1.0,
-                   help="the live view's pace, times real time (1; 0: as fast as it runs)")
-    p.add_argument("--live-wait", type=float, default=0.0,
-                   help="seconds to wait for a viewer to subscribe before the first tick (0)")
-
-
-def live_options(args: argparse.Namespace) -> dict[str, Any] | None:
-    """The live view's keyword arguments, or None without ``--live``; its extra checked."""
-    if args.live is None:
-        given = [f for f, on in (("--live-port", args.live_port != 8765),
-                                 ("--live-speed", args.live_speed != 1.0),
-                                 ("--live-wait", args.live_wait != 0.0)) if on]
-        if given:
-            raise ValueError(f"{', '.join(given)} set the live view: add --live foxglove")
-        return None
-    require("live", purpose="--live foxglove")
-    return {"port": args.live_port, "speed": args.live_speed, "wait": args.live_wait}
-
-
 def parse_start(text: str) -> float:
     """``"2024-05-01T12:00:00"`` (UTC unless an offset is given) or ``"1714564800.5"`` (Unix
     seconds) -> Unix seconds."""
@@ -227,35 +105,6 @@ def parse_start(text: str) -> float:
     return value
 
 
-def _policy_extras(specs: list[str]) -> list[str]:
-    """Extras the named policies need: a saved SB3 model without a numpy actor (one not saved
-    by ``boids train``) needs ``train``; the shipped ones and ours act in numpy."""
-    from boids_env.policies.registry import MODELS, switch_parts
-    from boids_env.policies.sb3_policy import has_numpy_actor
-
-    models = [str(p) for s in specs for p in (switch_parts(s) or (MODELS.get(s, s),))]
-    needs = any(m.endswith(".zip") and not has_numpy_actor(m) for m in models)
-    return ["train"] if needs else []
-
-
-def reynolds_preset(specs: list[str], preset: str | None,
-                    leader_weight: float | None = None) -> str:
-    """The preset for a bare ``reynolds`` policy (``paper`` unless ``--preset`` names one);
-    ``--preset`` and ``--leader-weight`` are refused where no policy would use them, rather
-    than silently ignored (``--preset`` sets only a bare ``reynolds``: ``reynolds@PRESET``
-    names its own)."""
-    from boids_env.policies.registry import split_preset
-
-    shown = " ".join(f"--policy {s}" for s in specs)
-    if leader_weight is not None and not any(split_preset(s)[0] == "reynolds" for s in specs):
-        raise ValueError(f"--leader-weight is a Reynolds parameter: it needs --policy reynolds "
-                         f"or reynolds@PRESET, got {shown}")
-    if preset is not None and "reynolds" not in specs:
-        raise ValueError(f"--preset {preset} sets the parameters of --policy reynolds only "
-                         f"(reynolds@PRESET names its own), got {shown}")
-    return preset or "paper"
-
-
 def _check_run_flags(args: argparse.Namespace) -> None:
     """Flags of ``boids run`` that only one mode reads are refused in the other."""
     if args.render == "human":
@@ -276,49 +125,11 @@ def _check_run_flags(args: argparse.Namespace) -> None:
                          f"got {args.fast:g}")
 
 
-def _env_fields(args: argparse.Namespace) -> dict[str, Any]:
-    given = ("robots", "robot", "leader_speed", "path", "scene", "start", "start_heading",
-             "leader", "leader_trajectory", "crowd", "max_cycles", "arena_half_size",
-             "realism")
-    fields: dict[str, Any] = {name: getattr(args, name) for name in given
-                              if getattr(args, name) is not None}
-    if args.leader_trajectory is not None:
-        fields.setdefault("leader", "trajectory")
-    if args.map is not None:
-        if args.scene is not None:
-            raise ValueError("give --scene or --map, not both (a map is a scene)")
-        fields["scene"] = args.map
-    if args.path == "waypoints" and args.waypoints is None:
-        raise ValueError("--path waypoints needs --waypoints \"x,y x,y ...\" (metres)")
-    if args.waypoints is not None:
-        fields["waypoints"] = args.waypoints
-        fields.setdefault("path", "waypoints")
-    if args.no_wrap:
-        fields["wrap_alignment"] = False
-    if args.safety_filter:
-        fields["safety_filter"] = True
-    return _with_settings(fields, args.set)
-
-
 def _needs_people(fields: dict[str, Any]) -> bool:
     """Whether the pedestrian model runs in the (checked) config of ``fields``: a leader
     the model walks (a person on a path) or a crowd."""
     sc = EnvConfig.from_kwargs(**fields).scenario
     return sc.leader_kind.walks(sc) or sc.crowd > 0
-
-
-def _with_settings(fields: dict[str, Any], settings: list[tuple[str, Any]]) -> dict[str, Any]:
-    """``fields`` plus the ``--set FIELD=VALUE`` ones, checked as a whole config before
-    anything is written."""
-    from boids_env.config import EnvConfig
-
-    for name, value in settings:
-        if name in fields:
-            raise ValueError(f"--set {name}=... repeats a field given by its own flag")
-        fields[name] = tuple(map(tuple, value)) if name == "waypoints" else (
-            tuple(value) if name == "start" and isinstance(value, list) else value)
-    EnvConfig.from_kwargs(**fields)
-    return fields
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -328,8 +139,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
                          "opens the pygame window: pick one")
     live = live_options(args)
     preset = reynolds_preset([args.policy], args.preset, args.leader_weight)
-    fields = _env_fields(args)
-    needs = _policy_extras([args.policy])
+    fields = env_fields(args)
+    needs = policy_extras([args.policy])
     if args.render == "human":
         require("render", *needs, purpose="boids run --render human")
         from boids_env.eval.live import run_live
@@ -417,7 +228,7 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
 def _cmd_eval(args: argparse.Namespace) -> int:
     specs = args.policy or ["reynolds"]
     preset = reynolds_preset(specs, args.preset)
-    require("eval", *_policy_extras(specs), *(["ray"] if args.backend == "ray" else []),
+    require("eval", *policy_extras(specs), *(["ray"] if args.backend == "ray" else []),
             purpose="boids eval")
     from pathlib import Path
 
@@ -487,7 +298,7 @@ def _select_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_select(args: argparse.Namespace) -> int:
-    require("eval", *_policy_extras([args.reference, *args.candidates]),
+    require("eval", *policy_extras([args.reference, *args.candidates]),
             purpose="boids select")
     import pandas as pd
 
@@ -541,225 +352,3 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
         path = sc.path if sc.path != "waypoints" else f"waypoints from {sc.start}"
         print(f"{name:<11} {text}\n{'':<11} leader path: {path}")
     return 0
-
-
-# ----------------------------------------------------------------------------------- ros
-ROS_ARGS_HELP = ("ROS remapping arguments, as any ROS node takes them: name:=value, "
-                 "_param:=value (a private parameter), __name:=node")
-
-
-def _ros_args(values: list[str]) -> list[str]:
-    bad = [v for v in values if ":=" not in v]
-    if bad:
-        raise ValueError(f"unexpected arguments {bad}: only ROS remapping arguments "
-                         f"(name:=value) may follow the options")
-    return values
-
-
-def _ros_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("ros", help="the study's ROS 1 graph: the world as a simulator node, "
-                       "any policy as the controller node, metrics of a recorded bag",
-                       description="ROS 1 nodes on the study's topics (/robot_k/odom, "
-                       "/robot_k/cmd_vel). Needs ROS 1's Python packages (Debian/Ubuntu: "
-                       "apt-get install ros-core python3-rospy python3-nav-msgs "
-                       "python3-geometry-msgs python3-visualization-msgs python3-tf2-msgs "
-                       "python3-dynamic-reconfigure python3-rosbag; or ROS Noetic) and a "
-                       "running roscore.")
-    ros = p.add_subparsers(dest="ros_command", required=True)
-    _ros_sim_parser(ros)
-    _ros_controller_parser(ros)
-    _ros_reconfigure_parser(ros)
-    _ros_metrics_parser(ros)
-
-
-def _ros_sim_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("sim", help="the pymunk world as a ROS node in place of Stage",
-                       description="Publishes /robot_k/odom (10 Hz), /tf, /clock and the "
-                       "scripted leader's /robot_0/cmd_vel; applies the followers' "
-                       "/robot_k/cmd_vel. Ends with the episode (--episodes N for more), "
-                       "prints the study's metrics, writes metrics.json, "
-                       "trajectory.parquet and config.json with --out.")
-    _add_env_args(p, "leader path (square); external: driven by /robot_0/cmd_vel",
-                  "seed of the first episode (0)")
-    p.add_argument("--episodes", type=int, default=1, help="episodes to run (1)")
-    p.add_argument("--lockstep", action="store_true",
-                   help="advance a tick only when every follower answered it "
-                   "(deterministic); default: real time, like Stage")
-    p.add_argument("--cmd-timeout", type=float, default=None,
-                   help="real time: a follower without a command for this long (s) gets "
-                   "(0, 0), as a robot driver's safety stop (0.5)")
-    p.add_argument("--no-wait", action="store_true",
-                   help="real time: start at once instead of waiting for a controller")
-    p.add_argument("--wait-for", action="append", default=[], metavar="NODE",
-                   help="also hold tick 0 until NODE (e.g. /recorder) subscribes to every "
-                   "topic of the graph; repeatable")
-    p.add_argument("--out", default=None, help="output folder (none: print only)")
-    p.add_argument("--quiet", action="store_true",
-                   help="print nothing but errors (no waiting notes, metrics table or "
-                   "written-files line)")
-    p.add_argument("ros_args", nargs="*", help=ROS_ARGS_HELP)
-    p.set_defaults(func=_cmd_ros_sim)
-
-
-def _cmd_ros_sim(args: argparse.Namespace) -> int:
-    import sys
-
-    from boids_env.eval.ros.protocol import CMD_TIMEOUT
-    from boids_env.eval.ros.sim import SimOptions, run_sim
-
-    if args.no_wait and args.lockstep:
-        raise ValueError("--no-wait is for real time; --lockstep always waits for a controller")
-    options = SimOptions(
-        env_fields=_env_fields(args), lockstep=args.lockstep, episodes=args.episodes,
-        seed=args.seed, cmd_timeout=CMD_TIMEOUT if args.cmd_timeout is None
-        else args.cmd_timeout, wait_controller=not args.no_wait,
-        wait_for=tuple(args.wait_for), out=args.out, quiet=args.quiet)
-    run_sim(options, [sys.argv[0], *_ros_args(args.ros_args)])
-    return 0
-
-
-def add_controller_args(p: argparse.ArgumentParser, source: str) -> None:
-    """The options every policy node takes, ROS 1's ``boids ros controller`` and ROS 2's
-    ``boids ros2 controller`` alike (``source``: where the group size comes from)."""
-    p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
-    p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
-    p.add_argument("--preset", choices=sorted(PRESETS), default=None,
-                   help="Reynolds parameters of --policy reynolds (paper)")
-    p.add_argument("--leader-weight", type=float, default=None,
-                   help="Reynolds leader weight (preset's: 1.0); reynolds policies only")
-    p.add_argument("--robots", type=int, default=None,
-                   help=f"group size of the odometry source (default: {source})")
-    p.add_argument("--arena-half-size", type=float, default=None,
-                   help="m, with --robots (5.0)")
-    p.add_argument("--sync", choices=("stamp", "rate"), default="stamp",
-                   help="stamp: answer each tick once every robot reported it (default); "
-                   "rate: every 0.1 s from the latest odometry (unsynchronised robots)")
-    p.add_argument("--seed", type=int, default=0,
-                   help="policy seed when the source announces no episode (0)")
-    p.add_argument("--max-ticks", type=int, default=None,
-                   help="exit after answering this many ticks")
-
-
-def _ros_controller_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("controller", help="any policy as the study's reynolds_controller "
-                       "node", description="Subscribes to every /robot_k/odom, builds the "
-                       "env's observations, publishes every follower's /robot_k/cmd_vel and "
-                       "(Reynolds) the rule-force markers on ~markers; Reynolds parameters are "
-                       "ROS parameters, changeable live through dynamic_reconfigure: "
-                       "boids ros reconfigure leader_weight=1.1 (or rqt_reconfigure on a full "
-                       "ROS install).")
-    add_controller_args(p, "boids ros sim's, read from the /boids/env_config parameter")
-    p.add_argument("--no-markers", action="store_true", help="do not publish ~markers")
-    p.add_argument("--quiet", action="store_true",
-                   help="print nothing but errors (no start line, waiting or new-episode "
-                   "notes)")
-    p.add_argument("ros_args", nargs="*", help=ROS_ARGS_HELP)
-    p.set_defaults(func=_cmd_ros_controller)
-
-
-def _cmd_ros_controller(args: argparse.Namespace) -> int:
-    import sys
-
-    preset = reynolds_preset([args.policy], args.preset, args.leader_weight)
-    require(*_policy_extras([args.policy]), purpose=f"boids ros controller --policy "
-            f"{args.policy}")
-    from boids_env.eval.ros.controller import ControllerOptions, run_controller
-
-    fields: dict[str, Any] = {}
-    if args.robots is not None:
-        fields["robots"] = args.robots
-    if args.arena_half_size is not None:
-        if args.robots is None:
-            raise ValueError("--arena-half-size goes with --robots (otherwise the simulator's "
-                             "config is used)")
-        fields["arena_half_size"] = args.arena_half_size
-    options = ControllerOptions(
-        policy=args.policy, preset=preset, leader_weight=args.leader_weight,
-        env_fields=fields, sync=args.sync, seed=args.seed, max_ticks=args.max_ticks,
-        markers=not args.no_markers, quiet=args.quiet, trust_model=args.trust_model)
-    run_controller(options, [sys.argv[0], *_ros_args(args.ros_args)])
-    return 0
-
-
-def _ros_reconfigure_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("reconfigure", help="change a running controller's Reynolds "
-                       "parameters live (dynamic_reconfigure), or show them",
-                       description="Calls the node's dynamic_reconfigure services, as "
-                       "rqt_reconfigure and dynparam do: boids ros reconfigure "
-                       "leader_weight=1.2 horizon=0.8. Without assignments, prints the "
-                       "current values.")
-    p.add_argument("changes", nargs="*", metavar="NAME=VALUE",
-                   help="separation_weight, cohesion_weight, alignment_weight, leader_weight, "
-                   "horizon, desired_separation, max_speed, max_force")
-    p.add_argument("--node", default="/reynolds_controller",
-                   help="the controller node (/reynolds_controller)")
-    p.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for it (10)")
-    p.set_defaults(func=_cmd_ros_reconfigure)
-
-
-def _cmd_ros_reconfigure(args: argparse.Namespace) -> int:
-    from boids_env.eval.ros.reconfigure import parse_assignments, reconfigure_node
-
-    changes = parse_assignments(args.changes)
-    for name, value in reconfigure_node(args.node, changes, args.timeout).items():
-        print(f"{name} = {value:g}")
-    return 0
-
-
-def _ros_metrics_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("metrics", help="the study's metrics of a bag recorded from the live "
-                       "graph (rosbag record)",
-                       description="Reads a bag of /robot_k/odom and /robot_k/cmd_vel "
-                       "recorded from boids ros sim and a controller, and prints the metrics "
-                       "table of boids run (the live graph's commands answer the odometry: "
-                       "each is the command of the next sample).")
-    p.add_argument("bag", help="the .bag file (or a ROS 2 bag folder)")
-    p.add_argument("--config", default=None,
-                   help="the run's config.json (boids ros sim --out) for its thresholds and "
-                   "leader path (default: the study's, robots from the bag)")
-    p.add_argument("--out", default=None,
-                   help="also write metrics.json and trajectory.parquet here")
-    p.set_defaults(func=_cmd_ros_metrics)
-
-
-def _cmd_ros_metrics(args: argparse.Namespace) -> int:
-    require("ros", purpose="boids ros metrics")
-    from boids_env.eval.ros.bags import read_live_bag
-    from boids_env.eval.run import metrics_table
-    from boids_env.files import atomic_path, write_json
-
-    config = None
-    if args.config is not None:
-        config = _run_config(Path(args.config))
-    recording = read_live_bag(args.bag, config)
-    metrics = recording.metrics()
-    print(f"bag {args.bag} · {recording.positions.shape[1]} robots · "
-          f"{recording.positions.shape[0] - 1} steps")
-    print(metrics_table(metrics))
-    if args.out is not None:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        write_json(out / "metrics.json", metrics)
-        with atomic_path(out / "trajectory.parquet") as tmp:
-            recording.to_parquet(tmp)
-        print(f"wrote metrics.json, trajectory.parquet to {out}")
-    return 0
-
-
-def _run_config(path: Path) -> EnvConfig:
-    """The env config of a run's ``config.json`` (``boids run`` / ``boids ros sim --out``);
-    every error names the file."""
-    import json
-
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
-        raise ValueError(f"--config {path}: cannot read it as JSON ({reason})") from None
-    if not isinstance(data, dict) or not isinstance(data.get("env"), dict):
-        raise ValueError(f"--config {path} is not a run's config.json (no \"env\" table; "
-                         f"boids ros sim --out and boids run write one)")
-    try:
-        return EnvConfig.from_dict(data["env"])
-    except (ValueError, TypeError) as exc:
-        raise ValueError(f"--config {path}: {exc}") from None

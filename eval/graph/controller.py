@@ -6,28 +6,38 @@ env's own builder, with the env's config: the same observations as in-process). 
 heading (e.g. a TurtleBot3) read REP 105 odometry (oriented, the twist in the robot's frame)
 and are answered with their own (linear.x, angular.z) from their driver's law, as a real
 TurtleBot3 takes it. ``boids ros controller`` (ROS 1) and ``boids ros2 controller`` (ROS 2
-over Zenoh) are this class under two transports.
+over Zenoh) are this class under two transports (:class:`ControllerTransport`): they
+subscribe to the odometry (:meth:`ControllerCore.odometry`) and publish the answers, and
+:meth:`ControllerCore.spin` runs the loop.
 """
 
 from __future__ import annotations
 
+import json
+import queue
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.commands import commands_from_actions, filtered, native_actions, safe_commands
 from boids_env.config import EnvConfig
 from boids_env.eval.episode import bind_policy, env_fields_for
-from boids_env.eval.ros.protocol import EpisodeInfo, Tick, finite_commands, is_continuation
+from boids_env.eval.graph.protocol import (
+    EpisodeInfo,
+    Tick,
+    TickAssembler,
+    finite_commands,
+    is_continuation,
+)
 from boids_env.observations import INITIAL_HEADING, Crowd, Observer
 from boids_env.policies.base import Policy
 from boids_env.policies.registry import load_policy, split_preset
-from boids_env.vectors import clip_speed
 from boids_env.world.realism import StaleObservations
 from boids_env.world.robots import make_model, quaternion_headings, to_world
-from boids_env.world.safety import filter_commands, people_around
 from boids_env.world.scenario import holding
 
 SYNC_MODES = ("stamp", "rate")
@@ -79,6 +89,55 @@ class ControllerOptions:
         split_preset(self.policy, self.preset)  # a bad spec or preset fails before ROS starts
 
 
+class ControllerTransport(Protocol):
+    """What a middleware provides to :meth:`ControllerCore.spin`."""
+
+    def stopped(self) -> bool:
+        """Whether the node is shutting down."""
+
+    def answer(self, tick: Tick) -> Any:
+        """Publishes the followers' commands for one tick (:meth:`ControllerCore.answer`'s),
+        and whatever goes with them (the force markers)."""
+
+
+def base_config(options: ControllerOptions, name: str, read: Callable[[], str | None],
+                stopped: Callable[[], bool], *, source: str, command: str, poll: float,
+                where: str = "") -> EnvConfig:
+    """The odometry source's env config: ``options.env_fields``, else the simulator's, its
+    JSON as ``read`` returns it (None until it is there), waited for up to
+    ``options.config_wait`` seconds in steps of ``poll``.
+
+    Args:
+        options: how the node runs.
+        name: the node's name, for messages.
+        read: the simulator's config JSON, or None while there is none.
+        stopped: whether the node is shutting down (stops the wait).
+        source: what holds the config (``/boids/env_config parameter``), for messages.
+        command: the simulator's command (``boids ros sim``), for messages.
+        poll: seconds between two reads.
+        where: said after the wait in the error (the network looked at).
+
+    Raises:
+        ValueError: no config within ``config_wait`` seconds.
+    """
+    if options.env_fields:
+        return EnvConfig().replace(**dict(options.env_fields))
+    waited, announced = 0.0, False
+    while True:
+        text = read()
+        if text is not None:
+            return EnvConfig.from_dict(json.loads(text))
+        if waited >= options.config_wait or stopped():
+            raise ValueError(f"no {source} after {options.config_wait:g} s{where}: start "
+                             f"{command} first, or give the robots of another odometry "
+                             f"source (--robots N)")
+        if not announced and not options.quiet:
+            print(f"{name}: waiting for {source} ({command})", flush=True)
+            announced = True
+        time.sleep(poll)
+        waited += poll
+
+
 def controller_policy(options: ControllerOptions) -> Policy:
     """The policy the node runs (loaded before the node touches a middleware)."""
     overrides = {} if options.leader_weight is None else {
@@ -125,6 +184,42 @@ class ControllerCore:
         self.answered = 0
         self.nonfinite = 0
         """Commands sent as a stop because they were not finite (non-finite odometry)."""
+        self.assembler = TickAssembler(self.robots, self.pedestrians)
+        """The odometry's ticks: the robots', then the crowd's pedestrians' sources."""
+        self.ticks: queue.Queue[Tick] = queue.Queue()
+        """Complete ticks not answered yet (``sync="stamp"``)."""
+
+    def odometry(self, source: int, stamp: int, x: float, y: float, vx: float, vy: float,
+                 qz: float = 0.0, qw: float = 1.0) -> None:
+        """Takes one odometry message (any thread): robot ``source``'s, or pedestrian
+        ``source - robots``'s; with ``sync="stamp"`` a tick it completes is queued for
+        :meth:`spin`."""
+        tick = self.assembler.add(source, stamp, x, y, vx, vy, qz, qw)
+        if tick is not None and self.options.sync == "stamp":
+            self.ticks.put(tick)
+
+    def spin(self, transport: ControllerTransport) -> int:
+        """Answers ticks through ``transport`` until it stops or ``max_ticks`` are answered;
+        returns how many were. ``sync="stamp"``: each complete tick once, in order;
+        ``"rate"``: every ``dt`` of wall time, the latest odometry of every robot."""
+        limit = self.options.max_ticks
+        deadline = time.monotonic()
+        last: int | None = None
+        while not transport.stopped() and (limit is None or self.answered < limit):
+            if self.options.sync == "stamp":
+                try:
+                    tick = self.ticks.get(timeout=0.1)
+                except queue.Empty:
+                    continue
+            else:
+                deadline += self.dt
+                time.sleep(max(0.0, deadline - time.monotonic()))
+                snap = self.assembler.snapshot()
+                if snap is None or snap.stamp_ns == last:
+                    continue
+                tick, last = snap, snap.stamp_ns
+            transport.answer(tick)
+        return self.answered
 
     @property
     def leader_hidden(self) -> npt.NDArray[np.bool_] | None:
@@ -192,50 +287,25 @@ class ControllerCore:
             obs = self.stale(obs, self.observer)  # its sight flags stale with their rows
         actions = self.policy.act(dict(zip(self.agents, obs, strict=True)))
         raw = np.array([actions[a] for a in self.agents], dtype=np.float64)
-        filtered = (self.config.safety.safety_filter
-                    and self.config.observation.action != "unicycle")
-        if filtered:  # held still there, during the start-up hold, as the env holds them
-            commands = self._filtered(raw, tick, velocities, headings)
-        elif headings is None:
-            # as the env parses them: float64, then into the world frame (no speed clip here:
-            # the robot, or the simulator, limits the speed, as the env does)
-            commands = self.observer.to_world(raw)
-        elif self.config.observation.action == "unicycle":  # (v, ω) from the policy itself
-            w = self.config.world
-            commands = np.clip(raw, [-w.max_speed, -w.max_turn_rate],
-                               [w.max_speed, w.max_turn_rate])
-        else:  # the robot's driver: its law from the speed-limited world-frame command
-            world = clip_speed(self.observer.to_world(raw), self.config.world.max_speed)
-            commands = self.model.native(world, headings[1:])
-        if self._holding(tick.stamp_ns) and not filtered:
-            commands = np.zeros_like(commands)
+        cfg = self.config
+        # As the env turns actions into commands (boids_env.commands). Holonomic robots
+        # without the filter get no speed limit here: the robot, or the simulator, limits
+        # the speed once, as the env does; the filter and a driver's law need it first.
+        commands = commands_from_actions(raw, cfg, self.observer.to_world,
+                                         hold=self._holding(tick.stamp_ns),
+                                         limit=headings is not None or filtered(cfg))
+        # The leader's odometry velocity stands for the leader's command, which the
+        # in-process env knows and a controller node does not; the people are kept off at
+        # their odometry velocities (the env uses their commands).
+        commands = safe_commands(commands, cfg, cfg.scene, tick.positions, velocities,
+                                 velocities[0], tick.crowd_positions, tick.crowd_velocities)
+        if headings is not None and not native_actions(cfg):
+            commands = self.model.native(commands, headings[1:])  # the robot driver's law
         # a non-finite odometry poisons its neighbours' commands: they go out as a stop
         commands, bad = finite_commands(commands)
         self.nonfinite += bad
         self.answered += 1
         return commands
-
-    def _filtered(self, raw: np.ndarray, tick: Tick, velocities: np.ndarray,
-                  headings: np.ndarray | None) -> np.ndarray:
-        """The commands through the safety filter, as the env filters them in-process when
-        the policy's env fields ask for it (``learned-scenes``, ``learned-buildings``): the
-        speed-limited world-frame commands (held still during the start-up hold), filtered
-        against every robot's odometry and the scene, then, for robots with a heading, the
-        driver's law. The leader's odometry velocity stands for the leader's command, which
-        the in-process env knows and a controller node does not. A person leading and the
-        pedestrians are kept off as the env keeps them (at their own width), at their
-        odometry velocities (the env uses their commands)."""
-        w, sc = self.config.world, self.config.scenario
-        world = clip_speed(self.observer.to_world(raw), w.max_speed)
-        if self._holding(tick.stamp_ns):
-            world = np.zeros_like(world)
-        world = filter_commands(world, tick.positions, velocities, velocities[0],
-                                w.robot_radius, w.max_speed, self.config.scene,
-                                self.config.safety,
-                                people_around(tick.positions[0], velocities[0],
-                                              tick.crowd_positions, tick.crowd_velocities,
-                                              sc.person_radius, sc.leader != "robot"))
-        return world if headings is None else self.model.native(world, headings[1:])
 
     def world_forces(self) -> dict[str, np.ndarray]:
         """The policy's rule forces of the last answer in the world frame (empty for a policy

@@ -1,7 +1,7 @@
 """The simulator node's logic, transport-free: the pymunk world
 (:class:`~boids_env.environment.BoidsEnv`) stepped tick by tick, each tick handed to a
 :class:`SimTransport` to publish, the followers' commands collected on a
-:class:`~boids_env.eval.ros.protocol.CommandBoard` (lockstep or real time).
+:class:`~boids_env.eval.graph.protocol.CommandBoard` (lockstep or real time).
 
 Each episode's samples are recorded exactly as ``boids run`` records them, so its metrics,
 ``metrics.json`` and ``trajectory.parquet`` are those of an in-process run given the same
@@ -14,7 +14,7 @@ from __future__ import annotations
 import copy
 import json
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -23,13 +23,15 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env.environment import BoidsEnv
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.protocol import (
     CLOCK_START,
     CMD_TIMEOUT,
     EPISODE_GAP,
     CommandBoard,
     EpisodeInfo,
+    cmd_topic,
     finite_leader_command,
+    odometry_topics,
     period_ns,
     stamp_ns,
 )
@@ -42,7 +44,8 @@ from boids_env.world.robots import quaternion_headings, to_body
 FloatArray = npt.NDArray[np.float64]
 
 WARN_EVERY = 5.0
-"""Seconds between the warnings of a lockstep simulator waiting for commands."""
+"""Seconds between the notes of a simulator waiting for its graph (before tick 0) or, in
+lockstep, for commands."""
 DRAIN = 1.0
 """Seconds (at most) the simulator waits after an episode for the answers to its last tick."""
 
@@ -136,26 +139,36 @@ class SimFrame:
 
 
 class SimTransport(Protocol):
-    """What a middleware provides to :class:`SimCore`."""
+    """What a middleware provides to :class:`SimCore`: publishing, and the graph as the
+    simulator node sees it (who publishes, who receives), from which :meth:`SimCore.
+    wait_ready` tells when tick 0 may start."""
 
     name: str
     """The node's name on the graph (for messages)."""
+    poll: float
+    """Seconds between two looks at the graph while tick 0 waits."""
+    wait_for_topics: Sequence[str]
+    """The topics a ``wait_for`` node (a recorder) must receive before tick 0."""
 
-    def wait_ready(self, core: SimCore) -> None:
-        """Blocks until the graph may start (controller connected, ``wait_for`` nodes); may
-        advance ``core.next_start_ns`` (a clock that ran while waiting)."""
+    def stopped(self) -> bool:
+        """Whether the node is shutting down."""
+
+    def publish_clock(self, stamp_ns: int) -> None:
+        """Publishes ``/clock`` alone (while tick 0 waits)."""
+
+    def publishers(self, topic: str) -> set[str]:
+        """The nodes publishing on ``topic``, one the simulator subscribes to (a follower's
+        ``cmd_vel``), connected to it."""
+
+    def receivers(self, topics: Sequence[str]) -> dict[str, set[str]]:
+        """For each of ``topics``, the nodes that receive it from every publisher on it
+        (none where nobody publishes it)."""
 
     def announce(self, info: EpisodeInfo) -> None:
         """Tells the graph that an episode starts (before its tick 0 is published)."""
 
     def publish(self, frame: SimFrame) -> None:
         """Publishes one tick."""
-
-    def shutdown_requested(self) -> bool:
-        """Whether the node is shutting down."""
-
-    def controllers(self) -> list[str]:
-        """The nodes publishing the followers' commands."""
 
 
 class SimCore:
@@ -177,12 +190,12 @@ class SimCore:
         self.dt = config.world.dt
         self.agents = list(self.env.possible_agents)
         self.external = sc.path == "external"
-        self.person = sc.leader == "person" and not self.external
+        self.person = sc.leader_kind.walks(sc)
         """A person walked by the pedestrian model leads: it takes no ``cmd_vel`` (its next
         step is known only once the model has stepped)."""
         self.pedestrians = sc.crowd
         """The crowd's size: the pedestrians published with every tick."""
-        self.heading = config.world.drive == "unicycle"
+        self.heading = config.world.has_heading
         if self.heading:
             # cmd_vel carries (v, ω) in the robot's frame: the world takes it as it is
             if self.external:
@@ -202,6 +215,64 @@ class SimCore:
         obs = config.observation
         self._sensors = Observer(config).sensors if obs.lidar_rays > 0 else None
         self.ready = False
+
+    # ---------------------------------------------------------------------------- graph
+    def controllers(self, transport: SimTransport) -> list[str]:
+        """The nodes publishing the followers' commands."""
+        return sorted({name for k in range(1, self.robots)
+                       for name in transport.publishers(cmd_topic(k))})
+
+    def graph_missing(self, transport: SimTransport) -> list[str]:
+        """What tick 0 still waits for (empty when everything is connected): a publisher on
+        every follower's ``cmd_vel`` whose nodes receive every odometry (in lockstep, or
+        with ``wait_controller``), and each ``wait_for`` node on every topic it must
+        receive."""
+        options, missing = self.options, []
+        if options.lockstep or options.wait_controller:
+            idle = [cmd_topic(k) for k in range(1, self.robots)
+                    if not transport.publishers(cmd_topic(k))]
+            if idle:
+                missing.append(f"a publisher on {', '.join(idle[:3])}"
+                               + (f" (+{len(idle) - 3})" if len(idle) > 3 else ""))
+            odoms = odometry_topics(self.robots, self.pedestrians)
+            heard = transport.receivers(odoms)
+            for name in self.controllers(transport):
+                deaf = [t for t in odoms if name not in heard[t]]
+                if deaf:
+                    missing.append(f"{name} to subscribe to {len(deaf)} odometry topics")
+        if options.wait_for:
+            topics = transport.wait_for_topics
+            heard = transport.receivers(topics)
+            for name in options.wait_for:
+                name = "/" + name.strip("/")
+                absent = [t for t in topics if name not in heard[t]]
+                if absent:
+                    missing.append(f"{name} on {len(absent)} topics")
+        return missing
+
+    def wait_ready(self, transport: SimTransport) -> None:
+        """Holds tick 0 until :meth:`graph_missing` is empty (then ``settle`` seconds more),
+        ``/clock`` running meanwhile at real time in steps of ``dt`` (from
+        :attr:`next_start_ns`, as Stage's clock runs before anything moves: sim-time nodes
+        such as ``rosbag record -a`` need it to advance); the first episode then starts at
+        the next step."""
+        last_note, start, period, shown = -WARN_EVERY, time.monotonic(), period_ns(self.dt), -1
+        while not transport.stopped():
+            now = time.monotonic()
+            steps = int((now - start) / self.dt)
+            if steps != shown:
+                transport.publish_clock(self.next_start_ns + steps * period)
+                shown = steps
+            missing = self.graph_missing(transport)
+            if not missing:
+                break
+            if now - last_note >= WARN_EVERY and not self.options.quiet:
+                print(f"{transport.name}: waiting for {'; '.join(missing)} ({now - start:.0f} s)",
+                      flush=True)
+                last_note = now
+            time.sleep(transport.poll)
+        time.sleep(self.options.settle)
+        self.next_start_ns += (shown + 1) * period
 
     # ------------------------------------------------------------------------- commands
     def post_command(self, index: int, linear_x: float, linear_y: float, angular_z: float,
@@ -257,7 +328,7 @@ class SimCore:
         """Waits for every follower's answer to ``tick``; None if the node shut down."""
         waited = 0.0
         while not self.board.wait_all(WARN_EVERY):
-            if transport.shutdown_requested():
+            if transport.stopped():
                 return None
             waited += WARN_EVERY
             if not self.options.quiet:
@@ -288,7 +359,7 @@ class SimCore:
         recorder = Recorder()
         recorder.capture(self.env)
         if not self.ready:
-            transport.wait_ready(self)
+            self.wait_ready(transport)
             self.ready = True
         start = self.next_start_ns
         info = EpisodeInfo(index, seed, start, float(self.env.leader.initial_heading))
@@ -300,7 +371,7 @@ class SimCore:
         deadline = began
         transport.publish(self.frame(0, start))
         tick = 0
-        while self.env.agents and not transport.shutdown_requested():
+        while self.env.agents and not transport.stopped():
             if opts.lockstep:
                 commands = self._lockstep_commands(tick, transport)
                 if commands is None:
@@ -322,7 +393,7 @@ class SimCore:
         else:
             time.sleep(min(DRAIN, self.dt))
         self.next_start_ns = stamp_ns(start, tick, self.dt) + period_ns(EPISODE_GAP)
-        controllers = transport.controllers()
+        controllers = self.controllers(transport)
         stats.update(extra_commands=self.board.extra - extra0,
                      rejected_commands=self.board.rejected - rejected0, controllers=controllers)
         recording = recorder.recording(self.env, seed=seed)
@@ -364,7 +435,7 @@ def run_episodes(core: SimCore, transport: SimTransport, title: str,
     episodes = []
     for index in range(options.episodes):
         episode = core.run_episode(index, transport)
-        if transport.shutdown_requested() and core.env.agents:
+        if transport.stopped() and core.env.agents:
             print(f"{transport.name}: shut down during episode {index}", flush=True)
             break
         episodes.append(episode)

@@ -5,6 +5,6 @@ controller``), on the original topics ``/robot_k/odom`` and ``/robot_k/cmd_vel``
 Importing this package needs no ROS: ``rospy`` and the message packages are imported when a
 node starts, through :func:`boids_env.eval.ros.rospy_path.import_rospy`, which finds Debian's
 or a ROS Noetic install's Python packages and names the packages to install when they are
-missing. The pure parts (:mod:`~boids_env.eval.ros.protocol`, the bag reader of
-:mod:`~boids_env.eval.ros.bags`) are usable and tested without ROS.
+missing. The bag reader of :mod:`~boids_env.eval.ros.bags` is usable and tested without ROS,
+as is the graph's transport-free part, :mod:`boids_env.eval.graph` (its protocol included).
 """

@@ -20,8 +20,6 @@ stamped together (real robots).
 
 from __future__ import annotations
 
-import json
-import queue
 import threading
 import time
 from collections.abc import Sequence
@@ -34,21 +32,22 @@ from boids_env.eval.graph.controller import (
     SYNC_MODES,
     ControllerCore,
     ControllerOptions,
+    base_config,
     controller_policy,
 )
-from boids_env.eval.ros import reconfigure
-from boids_env.eval.ros.messages import Messages, publisher
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.protocol import (
     CONFIG_PARAM,
     EPISODE_PARAM,
     QUEUE_SIZE,
     EpisodeInfo,
     Tick,
-    TickAssembler,
     cmd_topic,
     odom_topic,
     pedestrian_topic,
 )
+from boids_env.eval.ros import reconfigure
+from boids_env.eval.ros.messages import publisher, ros1_messages
+from boids_env.eval.ros.rospy_path import import_rospy
 
 __all__ = ["SYNC_MODES", "ControllerNode", "ControllerOptions", "controller_policy",
            "run_controller"]
@@ -71,8 +70,7 @@ class ControllerNode:
     def __init__(self, options: ControllerOptions, argv: Sequence[str] | None = None) -> None:
         self.options = options
         self.policy = controller_policy(options)
-        self.msgs = Messages()
-        rospy = self.rospy = self.msgs.rospy
+        rospy = self.rospy = import_rospy()
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
         from visualization_msgs.msg import MarkerArray
@@ -85,6 +83,7 @@ class ControllerNode:
                                           self._episode_param)
         self.config, self.observer, self.model = core.config, core.observer, core.model
         self.robots, self.dt, self.agents = core.robots, core.dt, core.agents
+        self.msgs = ros1_messages(rospy, self.config.world.robot_radius)
         rospy.set_param("~policy", options.policy)
         self.cmd_pubs = [publisher(rospy, cmd_topic(k), Twist) for k in range(1, self.robots)]
         self.marker_pub = (rospy.Publisher("~markers", MarkerArray, queue_size=10)
@@ -107,8 +106,6 @@ class ControllerNode:
                 print(f"{self.name}: from the parameter server: "
                       + ", ".join(f"{k} = {v:g}" for k, v in differ.items())
                       + f" (rosparam delete {self.name} to start from the preset)", flush=True)
-        self.assembler = TickAssembler(self.robots, core.pedestrians)
-        self.ticks: queue.Queue[Tick] = queue.Queue()
         self._source: str | None = None
         self._deaf: set[str] = set()
         self.odom_subs = [rospy.Subscriber(odom_topic(k), Odometry, self._on_odom,
@@ -123,21 +120,14 @@ class ControllerNode:
     # ---------------------------------------------------------------------------- config
     def _base_config(self) -> EnvConfig:
         """The odometry source's env config: the given fields, else the simulator's."""
-        if self.options.env_fields:
-            return EnvConfig().replace(**dict(self.options.env_fields))
-        waited, announced = 0.0, False
-        while not self.rospy.has_param(CONFIG_PARAM):
-            if waited >= self.options.config_wait or self.rospy.is_shutdown():
-                raise ValueError(
-                    f"no {CONFIG_PARAM} parameter after {self.options.config_wait:g} s: start "
-                    f"boids ros sim first, or give the robots of another odometry source "
-                    f"(--robots N)")
-            if not announced and not self.options.quiet:
-                print(f"{self.name}: waiting for {CONFIG_PARAM} (boids ros sim)", flush=True)
-                announced = True
-            time.sleep(0.2)
-            waited += 0.2
-        return EnvConfig.from_dict(json.loads(self.rospy.get_param(CONFIG_PARAM)))
+        rospy = self.rospy
+
+        def read() -> str | None:
+            return rospy.get_param(CONFIG_PARAM) if rospy.has_param(CONFIG_PARAM) else None
+
+        return base_config(self.options, self.name, read, rospy.is_shutdown,
+                           source=f"{CONFIG_PARAM} parameter", command="boids ros sim",
+                           poll=0.2)
 
     def _on_reconfigure(self, config: dict[str, Any], level: int) -> dict[str, Any]:
         """dynamic_reconfigure's callback (a service thread): validates the new values and
@@ -163,10 +153,7 @@ class ControllerNode:
             self._source = msg._connection_header.get("callerid")
         p, v = msg.pose.pose.position, msg.twist.twist.linear
         q = msg.pose.pose.orientation
-        tick = self.assembler.add(robot, msg.header.stamp.to_nsec(), p.x, p.y, v.x, v.y, q.z,
-                                  q.w)
-        if tick is not None and self.options.sync == "stamp":
-            self.ticks.put(tick)
+        self.core.odometry(robot, msg.header.stamp.to_nsec(), p.x, p.y, v.x, v.y, q.z, q.w)
 
     # -------------------------------------------------------------------------- answers
     def _episode_param(self, stamp: int | None = None) -> EpisodeInfo | None:
@@ -209,33 +196,21 @@ class ControllerNode:
         heading = self.core.heading
         for pub, command in zip(self.cmd_pubs, commands, strict=True):
             pub.publish(self.msgs.twist(*self.core.twist_fields(command, heading)))
-        world = self.core.world_forces()
-        if world and self.marker_pub is not None:
-            self.marker_pub.publish(self.msgs.force_markers(self.msgs.time(tick.stamp_ns),
-                                                            tick.positions, world))
+        # built only for a subscriber (RViz): rospy drops what nobody receives anyway
+        if self.marker_pub is not None and self.marker_pub.get_num_connections():
+            world = self.core.world_forces()
+            if world:
+                self.marker_pub.publish(self.msgs.force_markers(tick.stamp_ns, 0,
+                                                                tick.positions[1:], world))
         return commands
+
+    def stopped(self) -> bool:
+        return bool(self.rospy.is_shutdown())
 
     def spin(self) -> int:
         """Answers ticks until the node shuts down or ``max_ticks`` are answered; returns
         the number answered."""
-        limit = self.options.max_ticks
-        deadline = time.monotonic()
-        last_answered: int | None = None
-        while not self.rospy.is_shutdown() and (limit is None or self.answered < limit):
-            if self.options.sync == "stamp":
-                try:
-                    tick = self.ticks.get(timeout=0.1)
-                except queue.Empty:
-                    continue
-            else:
-                deadline += self.dt
-                time.sleep(max(0.0, deadline - time.monotonic()))
-                tick = self.assembler.snapshot()
-                if tick is None or tick.stamp_ns == last_answered:
-                    continue
-                last_answered = tick.stamp_ns
-            self.answer(tick)
-        return self.answered
+        return self.core.spin(self)
 
     def shutdown(self) -> None:
         """Leaves the graph; its Reynolds parameters leave the parameter server with it, so

@@ -1,25 +1,17 @@
-"""Building and reading the graph's ROS messages (rospy's message classes, imported through
-:func:`~boids_env.eval.ros.rospy_path.import_rospy` when a node starts)."""
+"""ROS 1's messages: the graph's one builder, :class:`boids_env.rosmsgs.Messages` (the bags'
+and ROS 2's, with :mod:`boids_env.style`'s look), making rospy's message objects; and rospy
+publishers. Nothing here imports rospy: the nodes hand it in, imported through
+:func:`~boids_env.eval.ros.rospy_path.import_rospy` when they start."""
 
 from __future__ import annotations
 
+import importlib
 import warnings
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from boids_env.eval.ros.protocol import MAP_FRAME, pedestrian_frame, robot_frame
-from boids_env.eval.ros.rospy_path import import_rospy
-
-FloatArray = npt.NDArray[np.float64]
-
-RULE_COLOURS = {  # RGB in [0, 1], as the original RViz view and our renderer
-    "separation": (0.9, 0.0, 0.0), "cohesion": (0.0, 0.67, 0.0),
-    "alignment": (0.0, 0.0, 1.0), "leader": (0.47, 0.78, 1.0)}
-FORCE_ARROW_SCALE = 1.0
-"""Marker arrows are ``force × FORCE_ARROW_SCALE`` metres long (N, or m for the leader term,
-as :mod:`boids_env.render` draws them), from the robot's position."""
+from boids_env.rosmsgs import Messages
 
 
 def publisher(rospy: Any, topic: str, data_class: Any, *, latch: bool = False) -> Any:
@@ -34,148 +26,68 @@ def publisher(rospy: Any, topic: str, data_class: Any, *, latch: bool = False) -
                                tcp_nodelay=True)
 
 
-class Messages:
-    """The message classes the nodes use, and builders that reuse one message object per
-    robot (rospy serialises in ``publish``, so reusing them is safe)."""
+ARRAY_FIELDS = {"geometry_msgs/msg/PoseWithCovariance": "covariance",
+                "geometry_msgs/msg/TwistWithCovariance": "covariance",
+                "nav_msgs/msg/OccupancyGrid": "data"}
+"""The numpy array fields the builder fills, which rospy takes as tuples: it serialises a
+numpy array's elements one by one, several times slower."""
 
-    def __init__(self) -> None:
-        self.rospy = import_rospy()
-        from geometry_msgs.msg import Point, TransformStamped, Twist
-        from nav_msgs.msg import Odometry
-        from rosgraph_msgs.msg import Clock
-        from tf2_msgs.msg import TFMessage
-        from visualization_msgs.msg import Marker, MarkerArray
 
-        self.Odometry, self.Twist, self.Clock = Odometry, Twist, Clock
-        self.TFMessage, self.TransformStamped = TFMessage, TransformStamped
-        self.Marker, self.MarkerArray, self.Point = Marker, MarkerArray, Point
-        self._odom: dict[int, Any] = {}
-        self._walkers: dict[int, Any] = {}
-        self._transforms: dict[int, Any] = {}
-        self._markers: dict[tuple[str, int], Any] = {}
+class RospyTypes(dict[str, Any]):
+    """rosbags' type names (``nav_msgs/msg/Odometry``) to rospy's message classes, which take
+    the same keyword arguments; stamps and durations become ``rospy.Time`` and
+    ``rospy.Duration``, numpy array fields (:data:`ARRAY_FIELDS`) tuples. Looked up when
+    first asked for."""
 
-    def time(self, stamp_ns: int) -> Any:
-        """A ``rospy.Time`` of ``stamp_ns`` nanoseconds (exact)."""
-        return self.rospy.Time(stamp_ns // 10**9, stamp_ns % 10**9)
+    def __init__(self, rospy: Any) -> None:
+        super().__init__()
+        self.rospy = rospy
 
-    def clock(self, stamp_ns: int) -> Any:
-        return self.Clock(clock=self.time(stamp_ns))
+    def __missing__(self, name: str) -> Any:
+        package, _, kind = name.split("/")
+        value: Any
+        if name == "builtin_interfaces/msg/Time":
+            value = lambda sec, nanosec: self.rospy.Time(sec, nanosec)  # noqa: E731
+        elif name == "builtin_interfaces/msg/Duration":
+            value = lambda sec, nanosec: self.rospy.Duration(sec, nanosec)  # noqa: E731
+        else:
+            value = _direct(getattr(importlib.import_module(f"{package}.msg"), kind),
+                            ARRAY_FIELDS.get(name))
+        self[name] = value
+        return value
 
-    def occupancy_grid(self, grid: Any, stamp_ns: int) -> tuple[Any, Any]:
-        """``/map`` and ``/map_metadata`` of a scene's cells (an
-        :class:`~boids_env.world.occupancy.OccupancyGrid`), as ``map_server`` publishes them."""
-        import math
 
-        from geometry_msgs.msg import Pose
-        from nav_msgs.msg import MapMetaData, OccupancyGrid
+def _direct(data_class: Any, array: str | None) -> Any:
+    """``data_class``'s constructor, made direct where every field is given (as the builder
+    gives them): rospy's own fills every field's default before taking the given ones, about
+    ten times the cost, which a lockstep tick of markers paid hundreds of times. ``array``:
+    a field taken as a tuple of Python numbers (:data:`ARRAY_FIELDS`)."""
+    slots = tuple(data_class.__slots__)
 
-        h, w = grid.cells.shape
-        x0, y0, yaw = grid.origin
-        info = MapMetaData(map_load_time=self.time(stamp_ns), resolution=grid.resolution,
-                           width=w, height=h, origin=Pose())
-        info.origin.position.x, info.origin.position.y = float(x0), float(y0)
-        info.origin.orientation.z, info.origin.orientation.w = math.sin(yaw / 2), math.cos(
-            yaw / 2)
-        msg = OccupancyGrid(info=info, data=grid.cells.reshape(-1).tolist())
-        msg.header.stamp, msg.header.frame_id = self.time(stamp_ns), MAP_FRAME
-        return msg, info
-
-    def odometry(self, robot: int, stamp: Any, position: FloatArray, velocity: FloatArray,
-                 quaternion: FloatArray | None = None, turn_rate: float = 0.0) -> Any:
-        """``robot``'s Odometry, zero covariances: position and measured velocity in the map
-        frame with identity orientation (a holonomic Sphero does not turn), or, for a robot
-        with a heading, oriented by ``quaternion`` (z, w) with ``velocity`` the twist in its
-        own frame and ``turn_rate`` its angular.z (REP 105)."""
-        msg = self._odom.get(robot)
-        if msg is None:
-            msg = self._odom[robot] = self.Odometry()
-            msg.header.frame_id = MAP_FRAME
-            msg.child_frame_id = robot_frame(robot)
-            msg.pose.pose.orientation.w = 1.0
-        msg.header.stamp = stamp
-        msg.pose.pose.position.x = float(position[0])
-        msg.pose.pose.position.y = float(position[1])
-        if quaternion is not None:
-            msg.pose.pose.orientation.z = float(quaternion[0])
-            msg.pose.pose.orientation.w = float(quaternion[1])
-            msg.twist.twist.angular.z = float(turn_rate)
-        msg.twist.twist.linear.x = float(velocity[0])
-        msg.twist.twist.linear.y = float(velocity[1])
+    def build(*args: Any, **fields: Any) -> Any:
+        if args:
+            fields = dict(zip(slots, args, strict=True))
+        if array is not None:
+            fields[array] = tuple(np.asarray(fields[array]).tolist())
+        if len(fields) != len(slots):
+            return data_class(**fields)  # rospy's defaults for the fields not given
+        msg = object.__new__(data_class)
+        for name, value in fields.items():
+            setattr(msg, name, value)  # a name that is no field raises (slots)
         return msg
 
-    def pedestrian_odometry(self, pedestrian: int, stamp: Any, position: FloatArray,
-                            velocity: FloatArray) -> Any:
-        """Pedestrian ``pedestrian``'s Odometry: position and velocity in the map frame,
-        identity orientation, child frame ``pedestrian_k``."""
-        msg = self._walkers.get(pedestrian)
-        if msg is None:
-            msg = self._walkers[pedestrian] = self.Odometry()
-            msg.header.frame_id = MAP_FRAME
-            msg.child_frame_id = pedestrian_frame(pedestrian)
-            msg.pose.pose.orientation.w = 1.0
-        msg.header.stamp = stamp
-        msg.pose.pose.position.x = float(position[0])
-        msg.pose.pose.position.y = float(position[1])
-        msg.twist.twist.linear.x = float(velocity[0])
-        msg.twist.twist.linear.y = float(velocity[1])
-        return msg
+    return build
 
-    def transforms(self, stamp: Any, positions: FloatArray,
-                   quaternions: FloatArray | None = None) -> Any:
-        """One ``/tf`` message: ``map`` → ``robot_k`` for every robot (turned by its
-        quaternion (z, w) when it has a heading)."""
-        out = []
-        for robot, (x, y) in enumerate(positions.tolist()):
-            tf = self._transforms.get(robot)
-            if tf is None:
-                tf = self._transforms[robot] = self.TransformStamped()
-                tf.header.frame_id = MAP_FRAME
-                tf.child_frame_id = robot_frame(robot)
-                tf.transform.rotation.w = 1.0
-            tf.header.stamp = stamp
-            tf.transform.translation.x = x
-            tf.transform.translation.y = y
-            if quaternions is not None:
-                tf.transform.rotation.z = float(quaternions[robot, 0])
-                tf.transform.rotation.w = float(quaternions[robot, 1])
-            out.append(tf)
-        return self.TFMessage(transforms=out)
 
-    def twist(self, vx: float, vy: float, turn_rate: float = 0.0) -> Any:
-        """A velocity command: world-frame (vx, vy), or for a robot with a heading its own
-        frame's (linear.x, 0) and angular.z ``turn_rate``."""
-        msg = self.Twist()
-        msg.linear.x = float(vx)
-        msg.linear.y = float(vy)
-        msg.angular.z = float(turn_rate)
-        return msg
+class RospyStore:
+    """A stand-in for a rosbags type store (its ``types``) with rospy's classes."""
 
-    def force_markers(self, stamp: Any, positions: FloatArray,
-                      forces: dict[str, FloatArray]) -> Any:
-        """Arrows of each rule's weighted force per follower (namespace = rule, id = robot
-        index), ``FORCE_ARROW_SCALE`` metres per unit, from the follower's position."""
-        markers = []
-        for rule, vectors in forces.items():
-            r, g, b = RULE_COLOURS.get(rule, (0.5, 0.5, 0.5))
-            for i, (start, vector) in enumerate(zip(positions[1:].tolist(),
-                                                    np.asarray(vectors, dtype=float).tolist(),
-                                                    strict=True)):
-                m = self._markers.get((rule, i))
-                if m is None:
-                    m = self._markers[(rule, i)] = self.Marker()
-                    m.header.frame_id = MAP_FRAME
-                    m.ns = rule
-                    m.id = i + 1
-                    m.type = self.Marker.ARROW
-                    m.action = self.Marker.ADD
-                    m.pose.orientation.w = 1.0
-                    m.points = [self.Point(), self.Point()]
-                    m.scale.x, m.scale.y, m.scale.z = 0.02, 0.04, 0.05  # shaft, head
-                    m.color.r, m.color.g, m.color.b, m.color.a = r, g, b, 1.0
-                m.header.stamp = stamp
-                tail, head = m.points
-                tail.x, tail.y = start
-                head.x = start[0] + FORCE_ARROW_SCALE * vector[0]
-                head.y = start[1] + FORCE_ARROW_SCALE * vector[1]
-                markers.append(m)
-        return self.MarkerArray(markers=markers)
+    def __init__(self, rospy: Any) -> None:
+        self.types = RospyTypes(rospy)
+
+
+def ros1_messages(rospy: Any, robot_radius: float) -> Messages:
+    """The graph's message builder making ``rospy``'s objects (Noetic's definitions; rospy
+    from :func:`~boids_env.eval.ros.rospy_path.import_rospy`) for robots of
+    ``robot_radius`` (m)."""
+    return Messages(RospyStore(rospy), True, robot_radius)

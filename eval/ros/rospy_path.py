@@ -81,11 +81,3 @@ def import_rospy() -> ModuleType:
         raise MissingRosError(f"ROS message packages {missing} are missing: {INSTALL_HINT}")
     return rospy
 
-
-def ros_available() -> bool:
-    """Whether :func:`import_rospy` succeeds here."""
-    try:
-        import_rospy()
-    except MissingRosError:
-        return False
-    return True

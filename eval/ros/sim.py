@@ -9,7 +9,7 @@ sim subscribes to it instead, for a teleop; a person walked by the pedestrian mo
 none). With a crowd (``--crowd N``), every pedestrian's ``/pedestrian_k/odom`` (latched,
 nav_msgs/Odometry in ``map``, child ``pedestrian_k``, its velocity in the twist) with each
 tick: what the followers observe. Subscribes to every follower's
-``/robot_k/cmd_vel``. See :mod:`boids_env.eval.ros.protocol` for the timing (lockstep or real
+``/robot_k/cmd_vel``. See :mod:`boids_env.eval.graph.protocol` for the timing (lockstep or real
 time, the 0.5 s command timeout, stamps and episodes).
 
 The simulation itself (stepping, lockstep, recording) is
@@ -19,10 +19,25 @@ episode's samples are recorded exactly as ``boids run`` records them.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 from typing import Any
 
+from boids_env.eval.graph.messages import crowd_odometry, robot_odometry, transforms
+from boids_env.eval.graph.protocol import (
+    CLOCK_START,
+    CONFIG_PARAM,
+    EPISODE_PARAM,
+    MAP_FRAME,
+    QUEUE_SIZE,
+    EpisodeInfo,
+    cmd_topic,
+    config_json,
+    odom_topic,
+    odometry_topics,
+    pedestrian_topic,
+    period_ns,
+    robot_frame,
+)
 from boids_env.eval.graph.sim import (
     SimCore,
     SimEpisode,
@@ -31,26 +46,14 @@ from boids_env.eval.graph.sim import (
     run_episodes,
     write_outputs,
 )
-from boids_env.eval.ros.messages import Messages, publisher
-from boids_env.eval.ros.protocol import (
-    CLOCK_START,
-    CONFIG_PARAM,
-    EPISODE_PARAM,
-    QUEUE_SIZE,
-    EpisodeInfo,
-    cmd_topic,
-    config_json,
-    odom_topic,
-    pedestrian_topic,
-    period_ns,
-)
+from boids_env.eval.ros.messages import publisher, ros1_messages
+from boids_env.eval.ros.rospy_path import import_rospy
 
 __all__ = ["SimEpisode", "SimNode", "SimOptions", "run_sim", "write_outputs"]
 
-WARN_EVERY = 5.0
-"""Seconds between the notes of a simulator waiting for its graph."""
 POLL = 0.05
-"""Seconds between checks of the graph while waiting for nodes to connect."""
+"""Seconds between checks of the graph while waiting for nodes to connect (each asks the
+master and the nodes over XML-RPC)."""
 
 
 class SimNode:
@@ -69,8 +72,8 @@ class SimNode:
         self.robots, self.dt, self.agents = core.robots, core.dt, core.agents
         self.external, self.heading = core.external, core.heading
         config = self.config
-        self.msgs = Messages()
-        rospy = self.rospy = self.msgs.rospy
+        rospy = self.rospy = import_rospy()
+        self.msgs = ros1_messages(rospy, config.world.robot_radius)
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
         from rosgraph_msgs.msg import Clock
@@ -86,11 +89,11 @@ class SimNode:
         # the scene as map_server publishes a map: latched, once
         from nav_msgs.msg import MapMetaData, OccupancyGrid
 
-        grid, meta = self.msgs.occupancy_grid(config.scene.occupancy(), period_ns(CLOCK_START))
+        grid = self.msgs.occupancy_grid(period_ns(CLOCK_START), config.scene.occupancy())
         self.map_pub = publisher(rospy, "/map", OccupancyGrid, latch=True)
         self.map_meta_pub = publisher(rospy, "/map_metadata", MapMetaData, latch=True)
         self.map_pub.publish(grid)
-        self.map_meta_pub.publish(meta)
+        self.map_meta_pub.publish(grid.info)
         self.tf_pub = publisher(rospy, "/tf", TFMessage)
         self.odom_pubs = [publisher(rospy, odom_topic(k), Odometry, latch=True)
                           for k in range(self.robots)]
@@ -107,6 +110,18 @@ class SimNode:
                                           callback_args=k - 1, queue_size=QUEUE_SIZE,
                                           tcp_nodelay=True)
                          for k in range(1, self.robots)]
+        self._subscriptions = {cmd_topic(k): sub for k, sub in enumerate(self.cmd_subs, 1)}
+        self._publishers = {pub.resolved_name: pub for pub in (
+            self.clock_pub, self.tf_pub, *self.odom_pubs, *self.pedestrian_pubs,
+            *([self.leader_pub] if self.leader_pub is not None else []))}
+        self._parents = [MAP_FRAME] * self.robots  # the study's frames: map -> robot_k
+        self._children = [robot_frame(k) for k in range(self.robots)]
+        self.poll = POLL
+        # a recorder (rosbag record -a) needs the commands too: boids ros metrics reads them
+        self.wait_for_topics = [*odometry_topics(self.robots, core.pedestrians),
+                                *(cmd_topic(k) for k in range(0 if self.leader_pub else 1,
+                                                              self.robots)),
+                                "/clock", "/tf"]
 
     # ------------------------------------------------------------------------ callbacks
     def _on_command(self, msg: Any, index: int) -> None:
@@ -119,40 +134,26 @@ class SimNode:
             self.rospy.logwarn_throttle(5.0, f"{self.name}: dropped a non-finite command for "
                                         f"the leader")
 
-    # -------------------------------------------------------------------------- waiting
-    def controllers(self) -> list[str]:
-        """Nodes publishing the followers' commands."""
-        names = {c.callerid_pub for sub in self.cmd_subs for c in sub.impl.connections}
-        return sorted(names)
+    # ---------------------------------------------------------------------------- graph
+    def publishers(self, topic: str) -> set[str]:
+        """The nodes connected to this node's subscription to ``topic``."""
+        sub = self._subscriptions.get(topic)
+        return set() if sub is None else {c.callerid_pub for c in sub.impl.connections}
 
-    def _graph_missing(self) -> list[str]:
-        """What tick 0 still waits for (empty when everything is connected)."""
-        missing = []
-        if self.options.lockstep or self.options.wait_controller:
-            idle = [cmd_topic(k + 1) for k, sub in enumerate(self.cmd_subs)
-                    if sub.get_num_connections() == 0]
-            if idle:
-                missing.append(f"a publisher on {', '.join(idle[:3])}"
-                               + (f" (+{len(idle) - 3})" if len(idle) > 3 else ""))
-            else:  # the controllers must also receive every odometry from tick 0 on
-                for node in self.controllers():
-                    deaf = [p.resolved_name for p in self.odom_pubs + self.pedestrian_pubs
-                            if node not in {c.endpoint_id for c in p.impl.connections}]
-                    if deaf:
-                        missing.append(f"{node} to subscribe to {len(deaf)} odometry topics")
-        if self.options.wait_for:
-            wanted = {odom_topic(k) for k in range(self.robots)}
-            wanted |= {pedestrian_topic(k) for k in range(self.core.pedestrians)}
-            wanted |= {cmd_topic(k) for k in range(0 if self.leader_pub else 1, self.robots)}
-            wanted |= {"/clock", "/tf"}
-            links = self._outbound_links(wanted)
-            for node in self.options.wait_for:
-                node = "/" + node.strip("/")
-                absent = [t for t in wanted if not links.get(t) or any(
-                    node not in peers for peers in links[t])]
-                if absent:
-                    missing.append(f"{node} on {len(absent)} topics")
-        return missing
+    def receivers(self, topics: Sequence[str]) -> dict[str, set[str]]:
+        """For each topic, the nodes every publisher on it is connected to: this node's own
+        publishers answer themselves, others through :meth:`_outbound_links`."""
+        foreign = {t for t in topics if t not in self._publishers}
+        links = self._outbound_links(foreign) if foreign else {}
+        out = {}
+        for topic in topics:
+            pub = self._publishers.get(topic)
+            if pub is not None:
+                out[topic] = {c.endpoint_id for c in pub.impl.connections}
+            else:
+                peers = links.get(topic) or [set()]
+                out[topic] = set.intersection(*peers)
+        return out
 
     def _outbound_links(self, topics: set[str]) -> dict[str, list[set[str]]]:
         """For each topic, one set per publisher: the nodes that publisher is connected to.
@@ -183,34 +184,12 @@ class SimNode:
         return {topic: [{peer for t, peer in bus[node] if t == topic} for node in nodes]
                 for topic, nodes in by_topic.items()}
 
-    def wait_ready(self, core: SimCore) -> None:
-        """Holds tick 0 until the controller and the ``wait_for`` nodes are connected, the
-        latched ``/clock`` running meanwhile at real time in steps of ``dt`` (from
-        :data:`CLOCK_START`); the first episode then starts at the next step."""
-        last_note = -WARN_EVERY
-        start = time.monotonic()
-        period = period_ns(self.dt)
-        shown = -1
-        while not self.rospy.is_shutdown():
-            now = time.monotonic()
-            steps = int((now - start) / self.dt)
-            if steps != shown:
-                self.clock_pub.publish(self.msgs.clock(core.next_start_ns + steps * period))
-                shown = steps
-            missing = self._graph_missing()
-            if not missing:
-                break
-            if now - last_note >= WARN_EVERY and not self.options.quiet:
-                print(f"{self.name}: waiting for {'; '.join(missing)} "
-                      f"({now - start:.0f} s)", flush=True)
-                last_note = now
-            time.sleep(POLL)
-        time.sleep(self.options.settle)
-        core.next_start_ns += (shown + 1) * period
-
     # ------------------------------------------------------------------ the transport
-    def shutdown_requested(self) -> bool:
+    def stopped(self) -> bool:
         return bool(self.rospy.is_shutdown())
+
+    def publish_clock(self, stamp_ns: int) -> None:
+        self.clock_pub.publish(self.msgs.clock(stamp_ns))
 
     def announce(self, info: EpisodeInfo) -> None:
         self.rospy.set_param(EPISODE_PARAM, info.to_json())
@@ -218,19 +197,17 @@ class SimNode:
     def publish(self, frame: SimFrame) -> None:
         """Publishes one tick: ``/clock``, every ``/robot_k/odom``, every
         ``/pedestrian_k/odom`` of a crowd, ``/tf`` and the scripted leader's ``cmd_vel``."""
-        stamp = self.msgs.time(frame.stamp_ns)
-        self.clock_pub.publish(self.msgs.Clock(clock=stamp))
-        q = frame.quaternions
-        for k, pub in enumerate(self.odom_pubs):
-            pub.publish(self.msgs.odometry(k, stamp, frame.positions[k], frame.velocities[k],
-                                           None if q is None else q[k], frame.turn_rates[k]))
-        if frame.crowd is not None:
-            for k, pub in enumerate(self.pedestrian_pubs):
-                pub.publish(self.msgs.pedestrian_odometry(
-                    k, stamp, frame.crowd.positions[k], frame.crowd.velocities[k]))
-        self.tf_pub.publish(self.msgs.transforms(stamp, frame.positions, q))
+        m, parents, children = self.msgs, self._parents, self._children
+        self.clock_pub.publish(m.clock(frame.stamp_ns))
+        for pub, msg in zip(self.odom_pubs, robot_odometry(m, frame, parents, children),
+                            strict=True):
+            pub.publish(msg)
+        for pub, msg in zip(self.pedestrian_pubs, crowd_odometry(m, frame), strict=False):
+            pub.publish(msg)  # none without a crowd
+        if self.tf_pub.get_num_connections():  # rospy drops what nobody receives anyway
+            self.tf_pub.publish(transforms(m, frame, parents, children))
         if self.leader_pub is not None and frame.leader_command is not None:
-            self.leader_pub.publish(self.msgs.twist(*frame.leader_command))
+            self.leader_pub.publish(m.twist(*frame.leader_command))
 
     def run_episode(self, index: int) -> SimEpisode:
         """Runs one whole episode (seed ``options.seed + index``) and returns it."""

@@ -1,24 +1,28 @@
 """``boids ros2 sim|controller``: the argument parsing (importing this needs no Zenoh).
 
 The flags it shares with ``boids run`` and ``boids ros`` (the env's, the live view's, the
-policy's) come from :mod:`boids_env.eval.cli`, which passes its helpers in
-(:func:`add_ros2_parser`): this module never imports it back.
+policy's, a simulator's and a controller's) come from :mod:`boids_env.eval.flags`.
 """
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Mapping
 from typing import Any
 
+from boids_env.eval.flags import (
+    add_controller_args,
+    add_live_args,
+    add_sim_args,
+    controller_options,
+    live_options,
+    policy_extras,
+    sim_options,
+)
 from boids_env.eval.ros2.wire import DEFAULT_DISTRIBUTION, DEFAULT_ROUTER, DISTRIBUTIONS
 
 
-def add_ros2_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> None:
-    """Adds ``ros2`` (``sim``, ``controller``) to the ``boids`` subparsers. ``helpers``:
-    ``boids``' shared flag helpers by name (``add_env_args``, ``env_fields``,
-    ``add_live_args``, ``live_options``, ``policy_extras``, ``reynolds_preset``,
-    ``add_controller_args``)."""
+def add_ros2_parser(sub: argparse._SubParsersAction) -> None:
+    """Adds ``ros2`` (``sim``, ``controller``) to the ``boids`` subparsers."""
     p = sub.add_parser("ros2", help="the study's graph as ROS 2 nodes over Zenoh (rmw_zenoh's "
                        "conventions; no ROS install)",
                        description="ROS 2 nodes on the study's topics (/robot_k/odom, "
@@ -26,8 +30,8 @@ def add_ros2_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any])
                        "RMW_IMPLEMENTATION=rmw_zenoh_cpp and its router sees and talks to them. "
                        "Needs the ros2 extra: pip install 'boids-env[ros2]'.")
     ros2 = p.add_subparsers(dest="ros2_command", required=True)
-    _sim_parser(ros2, helpers)
-    _controller_parser(ros2, helpers)
+    _sim_parser(ros2)
+    _controller_parser(ros2)
 
 
 def _add_transport_args(p: argparse.ArgumentParser) -> None:
@@ -68,7 +72,7 @@ def _ros2_options(args: argparse.Namespace) -> Any:
                        twist_stamped=args.twist_stamped)
 
 
-def _sim_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> None:
+def _sim_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sim", help="the pymunk world as a ROS 2 simulator node",
                        description="Publishes /robot_k/odom (10 Hz), /tf and /tf_static "
                        "(map -> robot_k/odom -> robot_k/base_footprint), /clock, /map, markers "
@@ -76,42 +80,19 @@ def _sim_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> 
                        "/robot_k/cmd_vel. Ends with the episode (--episodes N for more), "
                        "prints the study's metrics, writes metrics.json, trajectory.parquet "
                        "and config.json with --out.")
-    helpers["add_env_args"](p, "leader path (square); external: driven by /robot_0/cmd_vel",
-                  "seed of the first episode (0)")
-    p.add_argument("--episodes", type=int, default=1, help="episodes to run (1)")
-    p.add_argument("--lockstep", action="store_true",
-                   help="advance a tick only when every follower answered it "
-                   "(deterministic: equals boids run); default: real time")
-    p.add_argument("--cmd-timeout", type=float, default=None,
-                   help="real time: a follower without a command for this long (s) gets "
-                   "(0, 0) (0.5)")
-    p.add_argument("--no-wait", action="store_true",
-                   help="real time: start at once instead of waiting for a controller")
-    p.add_argument("--wait-for", action="append", default=[], metavar="NODE",
-                   help="also hold tick 0 until NODE subscribes to the odometry, /tf and "
-                   "/clock; repeatable")
-    p.add_argument("--out", default=None, help="output folder (none: print only)")
-    p.add_argument("--quiet", action="store_true",
-                   help="print only the metrics (no notes on the graph or its waiting)")
+    add_sim_args(p, "also hold tick 0 until NODE subscribes to the odometry, /tf and /clock; "
+                 "repeatable")
     _add_transport_args(p)
-    helpers["add_live_args"](p)
-    p.set_defaults(func=_cmd_sim, helpers=helpers)
+    add_live_args(p)
+    p.set_defaults(func=_cmd_sim)
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
-    from boids_env.eval.graph.sim import SimOptions
-    from boids_env.eval.ros.protocol import CMD_TIMEOUT
     from boids_env.extras import require
 
-    if args.no_wait and args.lockstep:
-        raise ValueError("--no-wait is for real time; --lockstep always waits for a controller")
-    options = SimOptions(
-        env_fields=args.helpers["env_fields"](args), lockstep=args.lockstep, episodes=args.episodes,
-        seed=args.seed, cmd_timeout=CMD_TIMEOUT if args.cmd_timeout is None
-        else args.cmd_timeout, wait_controller=not args.no_wait,
-        wait_for=tuple(args.wait_for), out=args.out, quiet=args.quiet)
+    options = sim_options(args)
     ros2 = _ros2_options(args)
-    live = args.helpers["live_options"](args)
+    live = live_options(args)
     require("ros2", purpose="boids ros2 sim")
     from boids_env.eval.ros2.sim import run_sim
 
@@ -119,45 +100,26 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     return 0
 
 
-def _controller_parser(sub: argparse._SubParsersAction, helpers: Mapping[str, Any]) -> None:
-
+def _controller_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("controller", help="any policy as the study's reynolds_controller, a "
                        "ROS 2 node", description="Subscribes to every /robot_k/odom, builds "
                        "the env's observations, publishes every follower's /robot_k/cmd_vel "
                        "and (Reynolds) the rule-force markers on /<node>/markers. Runs until "
                        "stopped (Ctrl-C) or --max-ticks.")
-    helpers["add_controller_args"](p, "boids ros2 sim's, read from /boids/env_config")
+    add_controller_args(p, "boids ros2 sim's, read from /boids/env_config")
     p.add_argument("--config-wait", type=float, default=30.0,
                    help="seconds to wait for the simulator's /boids/env_config (30)")
-    p.add_argument("--no-markers", action="store_true", help="do not publish the markers")
-    p.add_argument("--quiet", action="store_true",
-                   help="print nothing but errors (no notes on episodes and the graph)")
     _add_transport_args(p)
-    p.set_defaults(func=_cmd_controller, helpers=helpers)
+    p.set_defaults(func=_cmd_controller)
 
 
 def _cmd_controller(args: argparse.Namespace) -> int:
-    from boids_env.eval.graph.controller import ControllerOptions
     from boids_env.extras import require
 
-    helpers = args.helpers
-    preset = helpers["reynolds_preset"]([args.policy], args.preset, args.leader_weight)
-    fields: dict[str, Any] = {}
-    if args.robots is not None:
-        fields["robots"] = args.robots
-    if args.arena_half_size is not None:
-        if args.robots is None:
-            raise ValueError("--arena-half-size goes with --robots (otherwise the simulator's "
-                             "config is used)")
-        fields["arena_half_size"] = args.arena_half_size
+    options = controller_options(args, config_wait=args.config_wait)
     ros2 = _ros2_options(args)
-    require("ros2", *helpers["policy_extras"]([args.policy]),
+    require("ros2", *policy_extras([args.policy]),
             purpose=f"boids ros2 controller --policy {args.policy}")
-    options = ControllerOptions(
-        policy=args.policy, preset=preset, leader_weight=args.leader_weight,
-        env_fields=fields, sync=args.sync, seed=args.seed, max_ticks=args.max_ticks,
-        config_wait=args.config_wait, markers=not args.no_markers, quiet=args.quiet,
-        trust_model=args.trust_model)
     from boids_env.eval.ros2.controller import run_controller
 
     run_controller(options, ros2)

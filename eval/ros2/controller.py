@@ -11,20 +11,21 @@ stamped with the tick it answers) and, for a policy with rule forces, their arro
 
 from __future__ import annotations
 
-import json
-import queue
 import threading
-import time
 from typing import Any
 
 from boids_env.config import EnvConfig
-from boids_env.eval.graph.controller import ControllerCore, ControllerOptions, controller_policy
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.controller import (
+    ControllerCore,
+    ControllerOptions,
+    base_config,
+    controller_policy,
+)
+from boids_env.eval.graph.protocol import (
     CONFIG_TOPIC,
     EPISODE_TOPIC,
     EpisodeInfo,
     Tick,
-    TickAssembler,
     base_frame,
     cmd_topic,
     odom_topic,
@@ -67,8 +68,6 @@ class Ros2Controller:
                              for k in range(1, robots)]
             self.marker_pub = (node.publisher(f"{self.name}/markers", MARKERS)
                                if options.markers and hasattr(policy, "forces") else None)
-            self.assembler = TickAssembler(robots, self.core.pedestrians)
-            self.ticks: queue.Queue[Tick] = queue.Queue()
             for k in range(robots):
                 node.subscribe(odom_topic(k), ODOM,
                                lambda msg, robot=k: self._on_odom(msg, robot))
@@ -107,34 +106,22 @@ class Ros2Controller:
 
     def _base_config(self) -> EnvConfig:
         """The odometry source's env config: the given fields, else the simulator's."""
-        if self.options.env_fields:
-            return EnvConfig().replace(**dict(self.options.env_fields))
-        waited, announced = 0.0, False
-        while True:
+        def read() -> str | None:
             with self._lock:
-                text = self._config_text
-            if text is not None:
-                return EnvConfig.from_dict(json.loads(text))
-            if waited >= self.options.config_wait or self.stop.is_set():
-                raise ValueError(
-                    f"nothing on {CONFIG_TOPIC} after {self.options.config_wait:g} s (domain "
-                    f"{self.ros2.domain}, {self.ros2.distribution}, connect "
-                    f"{list(self.ros2.connect)}): start boids ros2 sim first, or give the "
-                    f"robots of another odometry source (--robots N)")
-            if not announced and not self.options.quiet:
-                print(f"{self.name}: waiting for {CONFIG_TOPIC} (boids ros2 sim)", flush=True)
-                announced = True
-            time.sleep(0.05)
-            waited += 0.05
+                return self._config_text
+
+        ros2 = self.ros2
+        return base_config(self.options, self.name, read, self.stop.is_set,
+                           source=f"{CONFIG_TOPIC} message", command="boids ros2 sim",
+                           poll=0.05, where=f" (domain {ros2.domain}, {ros2.distribution}, "
+                           f"connect {list(ros2.connect)})")
 
     # ------------------------------------------------------------------------- odometry
     def _on_odom(self, msg: Any, robot: int) -> None:
         p, v = msg.pose.pose.position, msg.twist.twist.linear
         q = msg.pose.pose.orientation
         stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
-        tick = self.assembler.add(robot, stamp, p.x, p.y, v.x, v.y, q.z, q.w)
-        if tick is not None and self.options.sync == "stamp":
-            self.ticks.put(tick)
+        self.core.odometry(robot, stamp, p.x, p.y, v.x, v.y, q.z, q.w)
 
     # -------------------------------------------------------------------------- answers
     def answer(self, tick: Tick) -> Any:
@@ -155,26 +142,12 @@ class Ros2Controller:
                                                     world))
         return commands
 
+    def stopped(self) -> bool:
+        return self.stop.is_set()
+
     def spin(self) -> int:
         """Answers ticks until stopped or ``max_ticks`` are answered; returns how many."""
-        limit, core = self.options.max_ticks, self.core
-        deadline = time.monotonic()
-        last: int | None = None
-        while not self.stop.is_set() and (limit is None or core.answered < limit):
-            if self.options.sync == "stamp":
-                try:
-                    tick = self.ticks.get(timeout=0.1)
-                except queue.Empty:
-                    continue
-            else:
-                deadline += core.dt
-                time.sleep(max(0.0, deadline - time.monotonic()))
-                snap = self.assembler.snapshot()
-                if snap is None or snap.stamp_ns == last:
-                    continue
-                tick, last = snap, snap.stamp_ns
-            self.answer(tick)
-        return core.answered
+        return self.core.spin(self)
 
     def close(self) -> None:
         self.node.close()

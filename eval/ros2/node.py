@@ -237,16 +237,3 @@ class Node:
                 pass
         self._tokens.clear()
         self.session.close()
-
-
-def wait_until(condition: Callable[[], bool], timeout: float, poll: float = 0.01) -> bool:
-    """Polls ``condition`` until it holds or ``timeout`` seconds passed; returns it."""
-    deadline = time.monotonic() + timeout
-    while True:
-        if condition():
-            return True
-        if time.monotonic() >= deadline:
-            return False
-        time.sleep(poll)
-
-

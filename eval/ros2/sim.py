@@ -26,15 +26,14 @@ from __future__ import annotations
 
 import signal
 import threading
-import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
 
-from boids_env.eval.graph.sim import SimCore, SimEpisode, SimFrame, SimOptions, run_episodes
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.messages import crowd_odometry, robot_odometry, transforms
+from boids_env.eval.graph.protocol import (
     CLOCK_START,
     CONFIG_TOPIC,
     EPISODE_TOPIC,
@@ -45,16 +44,17 @@ from boids_env.eval.ros.protocol import (
     config_json,
     odom_frame,
     odom_topic,
-    pedestrian_frame,
+    odometry_topics,
     pedestrian_topic,
     period_ns,
 )
+from boids_env.eval.graph.sim import SimCore, SimEpisode, SimFrame, SimOptions, run_episodes
 from boids_env.eval.ros2.options import TWIST, Ros2Options
 from boids_env.eval.ros2.wire import LATCHED
 from boids_env.rosbag import PEOPLE_TOPIC, PERSON_TOPIC
 
-WARN_EVERY = 5.0
 POLL = 0.01
+"""Seconds between looks at the graph's liveliness tokens while tick 0 waits."""
 
 ODOM = "nav_msgs/msg/Odometry"
 TF = "tf2_msgs/msg/TFMessage"
@@ -135,7 +135,7 @@ class Ros2Sim:
             if core.config.observation.lidar_rays > 0 else []
         self.pedestrian_pubs = [node.publisher(pedestrian_topic(k), ODOM)
                                 for k in range(core.pedestrians)]
-        person = core.config.scenario.leader != "robot"
+        person = core.config.scenario.leader_radius is not None
         self.person_pub = node.publisher(PERSON_TOPIC, ODOM) if person else None
         self.people_pub = (node.publisher(PEOPLE_TOPIC, MARKERS)
                            if person or core.pedestrians else None)
@@ -150,6 +150,8 @@ class Ros2Sim:
         for k in range(1, robots):
             node.subscribe(cmd_topic(k), cmd_type,
                            lambda msg, index=k - 1: self._on_command(msg, index))
+        self.poll = POLL
+        self.wait_for_topics = [*odometry_topics(robots, core.pedestrians), "/tf", "/clock"]
 
     # ------------------------------------------------------------------------ callbacks
     def _twist(self, msg: Any) -> Any:
@@ -166,59 +168,21 @@ class Ros2Sim:
         if not self.core.post_leader_command(t.linear.x, t.linear.y):
             print(f"{self.name}: dropped a non-finite command for the leader", flush=True)
 
-    # -------------------------------------------------------------------------- waiting
-    def controllers(self) -> list[str]:
-        return sorted({t.fqn for k in range(1, self.core.robots)
-                       for t in self.node.endpoints_on(cmd_topic(k), "MP")})
+    # ---------------------------------------------------------------------------- graph
+    def publishers(self, topic: str) -> set[str]:
+        """The nodes whose liveliness tokens show a publisher on ``topic``."""
+        return {t.fqn for t in self.node.endpoints_on(topic, "MP")}
 
-    def _graph_missing(self) -> list[str]:
-        """What tick 0 still waits for (empty when everything is connected)."""
-        core, node, missing = self.core, self.node, []
-        odoms = [odom_topic(k) for k in range(core.robots)]
-        odoms += [pedestrian_topic(k) for k in range(core.pedestrians)]
-        if core.options.lockstep or core.options.wait_controller:
-            idle = [cmd_topic(k) for k in range(1, core.robots)
-                    if not node.endpoints_on(cmd_topic(k), "MP")]
-            if idle:
-                missing.append(f"a publisher on {', '.join(idle[:3])}"
-                               + (f" (+{len(idle) - 3})" if len(idle) > 3 else ""))
-            for name in self.controllers():
-                deaf = [t for t in odoms
-                        if name not in {e.fqn for e in node.endpoints_on(t, "MS")}]
-                if deaf:
-                    missing.append(f"{name} to subscribe to {len(deaf)} odometry topics")
-        for name in core.options.wait_for:
-            name = "/" + name.strip("/")
-            absent = [t for t in (*odoms, "/tf", "/clock")
-                      if name not in {e.fqn for e in node.endpoints_on(t, "MS")}]
-            if absent:
-                missing.append(f"{name} on {len(absent)} topics")
-        return missing
-
-    def wait_ready(self, core: SimCore) -> None:
-        """Holds tick 0 until the controller and the ``wait_for`` nodes are on the graph,
-        ``/clock`` running meanwhile at real time in steps of ``dt``."""
-        last_note, start, period, shown = -WARN_EVERY, time.monotonic(), period_ns(core.dt), -1
-        while not self.stop.is_set():
-            now = time.monotonic()
-            steps = int((now - start) / core.dt)
-            if steps != shown:
-                self.clock_pub.publish(self.msgs.clock(core.next_start_ns + steps * period))
-                shown = steps
-            missing = self._graph_missing()
-            if not missing:
-                break
-            if now - last_note >= WARN_EVERY and not core.options.quiet:
-                print(f"{self.name}: waiting for {'; '.join(missing)} ({now - start:.0f} s)",
-                      flush=True)
-                last_note = now
-            time.sleep(POLL)
-        time.sleep(core.options.settle)
-        core.next_start_ns += (shown + 1) * period
+    def receivers(self, topics: Sequence[str]) -> dict[str, set[str]]:
+        """For each topic, the nodes whose liveliness tokens show a subscription to it."""
+        return {t: {e.fqn for e in self.node.endpoints_on(t, "MS")} for t in topics}
 
     # ------------------------------------------------------------------------ publishing
-    def shutdown_requested(self) -> bool:
+    def stopped(self) -> bool:
         return self.stop.is_set()
+
+    def publish_clock(self, stamp_ns: int) -> None:
+        self.clock_pub.publish(self.msgs.clock(stamp_ns))
 
     def announce(self, info: EpisodeInfo) -> None:
         self.episode_pub.publish(self.msgs.string(info.to_json()))
@@ -229,13 +193,10 @@ class Ros2Sim:
     def publish(self, frame: SimFrame) -> None:
         ns, m, q = frame.stamp_ns, self.msgs, frame.quaternions
         self.clock_pub.publish(m.clock(ns))
-        for k, pub in enumerate(self.odom_pubs):
-            header = m.header(ns, 0, self._parents[k])
-            pub.publish(m.odometry(header, k, frame.positions[k], frame.velocities[k], 0.0,
-                                   float(frame.turn_rates[k]), child=self._children[k],
-                                   quaternion=None if q is None else (q[k, 0], q[k, 1])))
-        self.tf_pub.publish(m.transforms(ns, 0, self._parents, self._children,
-                                         frame.positions, q))
+        for pub, msg in zip(self.odom_pubs,
+                            robot_odometry(m, frame, self._parents, self._children), strict=True):
+            pub.publish(msg)
+        self.tf_pub.publish(transforms(m, frame, self._parents, self._children))
         self._publish_people(frame)
         if self.leader_pub is not None and frame.leader_command is not None:
             twist = m.twist(*frame.leader_command)
@@ -257,10 +218,8 @@ class Ros2Sim:
     def _publish_people(self, frame: SimFrame) -> None:
         """The crowd's odometry, the person's, and the people's markers."""
         ns, m, crowd = frame.stamp_ns, self.msgs, frame.crowd
-        if crowd is not None:
-            for k, pub in enumerate(self.pedestrian_pubs):
-                pub.publish(m.odometry(m.header(ns, 0, MAP_FRAME), k, crowd.positions[k],
-                                       crowd.velocities[k], 0.0, child=pedestrian_frame(k)))
+        for pub, msg in zip(self.pedestrian_pubs, crowd_odometry(m, frame), strict=False):
+            pub.publish(msg)  # none without a crowd
         person = None
         if self.person_pub is not None:
             person = frame.positions[0]

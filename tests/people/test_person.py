@@ -202,23 +202,32 @@ PEOPLE_GRAPH = dict(scene="doorway", leader="person", crowd=3, robots=4, max_cyc
 
 
 class _Loopback:
-    """The graph's two nodes in one process: every published tick goes through the
-    controller's tick assembly (robots, then pedestrians, as their odometry arrives) to the
-    controller, whose commands are posted back as they would come on cmd_vel."""
+    """The graph's two nodes in one process: every published tick of the simulator ``core``
+    goes through the controller's tick assembly (robots, then pedestrians, as their odometry
+    arrives) to the controller, whose commands are posted back as they would come on
+    cmd_vel."""
 
     name = "loopback"
+    poll = 0.0
+    wait_for_topics = ()
 
-    def __init__(self, controller_core):
-        from boids_env.eval.ros.protocol import TickAssembler
+    def __init__(self, core, controller_core):
+        from boids_env.eval.graph.protocol import TickAssembler
 
         self.controller = controller_core
         self.assembler = TickAssembler(controller_core.robots, controller_core.pedestrians)
-        self.core = None
+        self.core = core
         self.info = None
         self.frames = []
 
-    def wait_ready(self, core):
-        self.core = core
+    def publish_clock(self, stamp_ns):
+        pass
+
+    def publishers(self, topic):
+        return {"/loopback"}
+
+    def receivers(self, topics):
+        return {t: {"/loopback"} for t in topics}
 
     def announce(self, info):
         self.info = info
@@ -236,11 +245,8 @@ class _Loopback:
         for index, (a, b) in enumerate(self.controller.answer(tick)):
             self.core.post_command(index, a, b, 0.0)
 
-    def shutdown_requested(self):
+    def stopped(self):
         return False
-
-    def controllers(self):
-        return ["/loopback"]
 
 
 def test_the_ros_graph_core_runs_a_walking_person_and_a_crowd_as_boids_run():
@@ -262,7 +268,7 @@ def test_the_ros_graph_core_runs_a_walking_person_and_a_crowd_as_boids_run():
         return transport.info
 
     controller = ControllerCore(options, controller_policy(options), core.config, "/c", episode)
-    transport = _Loopback(controller)
+    transport = _Loopback(core, controller)
     ours = core.run_episode(0, transport)
     reference = run("reynolds", out=None, seed=0, quiet=True, env_fields=PEOPLE_GRAPH)
     for name in ("positions", "velocities", "commanded", "time", "pedestrians"):
@@ -335,7 +341,7 @@ def _lockstep(policy_name, fields):
         return loop.info
 
     controller = ControllerCore(options, controller_policy(options), core.config, "/c", info)
-    loop = _Loopback(controller)
+    loop = _Loopback(core, controller)
     return core, controller, lambda: core.run_episode(0, loop)
 
 

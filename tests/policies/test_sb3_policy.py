@@ -140,15 +140,15 @@ def test_the_learned_policy_is_deterministic_per_seed():
 
 def test_the_shipped_models_need_no_extra_and_a_foreign_zip_names_the_train_extra(
         tmp_path, monkeypatch):
-    from boids_env.eval.cli import _policy_extras
+    from boids_env.eval.flags import policy_extras
 
-    assert _policy_extras(["learned", "learned-study", str(LEARNED_MODEL), "reynolds"]) == []
+    assert policy_extras(["learned", "learned-study", str(LEARNED_MODEL), "reynolds"]) == []
     foreign = tmp_path / "foreign.zip"
     with zipfile.ZipFile(LEARNED_MODEL) as src, zipfile.ZipFile(foreign, "w") as dst:
         for name in src.namelist():
             if name != ACTOR_ENTRY:
                 dst.writestr(name, src.read(name))
-    assert _policy_extras([str(foreign)]) == ["train"]
+    assert policy_extras([str(foreign)]) == ["train"]
 
     def no_torch(*args, **kwargs):
         raise ImportError("No module named 'torch'")

@@ -14,8 +14,6 @@ makes that a failure.
 from __future__ import annotations
 
 import os
-import signal
-import socket
 import subprocess
 import sys
 import time
@@ -24,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+from graph_support import Process, free_port
 
 from boids_env.eval.ros.rospy_path import MissingRosError, import_rospy
 
@@ -40,83 +39,6 @@ def _ros_or_skip() -> None:
         pytest.skip(f"ROS 1 is not installed: {exc}")
     if not any((Path(p) / "roscore").exists() for p in os.environ["PATH"].split(os.pathsep)):
         pytest.skip("roscore is not on PATH")
-
-
-def free_port() -> int:
-    """A free TCP port, never ROS's default 11311."""
-    while True:
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
-        if port != 11311:
-            return port
-
-
-@dataclass
-class Process:
-    """A node process; its output goes to a log file (a pipe could fill and block it)."""
-
-    name: str
-    popen: subprocess.Popen
-    log: Path
-
-    def output(self) -> str:
-        return self.log.read_text(errors="replace") if self.log.exists() else ""
-
-    def wait(self, timeout: float) -> int:
-        """The exit code; fails the test with the output if it does not end in time."""
-        try:
-            return self.popen.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            pytest.fail(f"{self.name} did not finish within {timeout} s; output:\n"
-                        f"{self.output()[-3000:]}")
-
-    def wait_for_line(self, text: str, timeout: float) -> None:
-        """Waits until the process has printed ``text``."""
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if text in self.output():
-                return
-            if self.popen.poll() is not None:
-                break
-            time.sleep(0.05)
-        pytest.fail(f"{self.name} never printed {text!r} within {timeout} s; output:\n"
-                    f"{self.output()[-3000:]}")
-
-    def stop(self, sig: int = signal.SIGINT, timeout: float = 10.0) -> None:
-        """Stops the process and its children (its own process group, e.g. ``rosbag
-        record``'s recorder binary): ``sig``, then SIGKILL after ``timeout`` seconds."""
-        if self.popen.poll() is None:
-            self._signal_group(sig)
-            try:
-                self.popen.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                self._signal_group(signal.SIGKILL)
-                self.popen.wait(timeout=timeout)
-            # rosbag's Python wrapper exits at once; its recorder child still closes and
-            # renames the bag (run.bag.active -> run.bag): let the group finish first
-            deadline = time.monotonic() + timeout
-            while self._group_alive() and time.monotonic() < deadline:
-                time.sleep(0.05)
-        self._signal_group(signal.SIGKILL)  # a child left behind by the process
-
-    def _group_alive(self) -> bool:
-        """Whether a process of the group is still running (zombies, which an exited
-        parent leaves to init, do not count)."""
-        for stat in Path("/proc").glob("[0-9]*/stat"):
-            try:
-                fields = stat.read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[2]) == self.popen.pid and fields[0] != "Z":
-                return True
-        return False
-
-    def _signal_group(self, sig: int) -> None:
-        try:
-            os.killpg(self.popen.pid, sig)  # the group this test created for the process
-        except ProcessLookupError:
-            pass
 
 
 @dataclass
@@ -159,6 +81,13 @@ class RosGraph:
     def close(self) -> None:
         for proc in reversed(self.processes):
             proc.stop()
+
+
+@pytest.fixture
+def rospy():
+    """ROS 1's rospy, its message packages checked (no master)."""
+    _ros_or_skip()
+    return import_rospy()
 
 
 @pytest.fixture

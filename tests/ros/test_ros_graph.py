@@ -9,13 +9,13 @@ import time
 
 import numpy as np
 import pytest
+from graph_support import assert_same_recording
 
 from boids_env.eval.run import run
 from boids_env.recording import Recording
 
 pytestmark = pytest.mark.slow
 
-FIELDS = ("positions", "velocities", "commanded", "time")
 REAL_TIME_TOLERANCE = 0.3
 """Largest |ΔV_x| allowed between a real-time graph and the in-process run of the same 15 s
 case: four ticks' worth of every follower flipping a violation flag (0.08 each). A command that
@@ -27,17 +27,6 @@ REAL_TIME_DRIFT = 0.5
 
 def _in_process(policy: str = "reynolds", seed: int = 0, **fields):
     return run(policy, out=None, seed=seed, env_fields=fields, quiet=True)
-
-
-def _assert_same_recording(ours: Recording, reference: Recording, what: str) -> None:
-    for name in FIELDS:
-        a, b = getattr(ours, name), getattr(reference, name)
-        assert a.shape == b.shape, f"{what}: {name} shape {a.shape} != {b.shape}"
-        bad = np.argwhere(a != b)
-        if len(bad):
-            where = tuple(bad[0][:2])  # (step, robot)
-            pytest.fail(f"{what}: {name} differs first at (step, robot) {where}: "
-                        f"{a[where]} vs {b[where]}")
 
 
 def _run_lockstep(ros, *sim_args: str, policy: str = "reynolds", recorder: bool = False):
@@ -61,7 +50,7 @@ def test_lockstep_graph_reproduces_boids_run_exactly_on_the_default_case(ros):
     out, sim = _run_lockstep(ros)
     reference = _in_process()
     ours = Recording.from_parquet(out / "trajectory.parquet")
-    _assert_same_recording(ours, reference.recording, "lockstep graph vs boids run")
+    assert_same_recording(ours, reference.recording, "lockstep graph vs boids run")
     metrics = json.loads((out / "metrics.json").read_text())
     assert json.dumps(metrics, sort_keys=True) == json.dumps(reference.metrics, sort_keys=True)
     assert metrics["steps"] == 746 and metrics["duration"] == pytest.approx(74.6)
@@ -85,7 +74,7 @@ def test_rosbag_record_of_a_lockstep_run_gives_the_sims_metrics(ros):
     sim_metrics = json.loads((out / "metrics.json").read_text())
     config = EnvConfig.from_dict(json.loads((out / "config.json").read_text())["env"])
     live = read_live_bag(bag, config)
-    _assert_same_recording(live, ours, "bag (read_bag + live alignment) vs sim")
+    assert_same_recording(live, ours, "bag (read_bag + live alignment) vs sim")
     from_bag = live.metrics()
     for key in ("V_sep", "V_coh", "V_align", "V_align_unwrapped", "leader_path_deviation",
                 "min_distance", "polarization"):
@@ -111,7 +100,7 @@ def test_a_turtlebot3_graph_speaks_body_frame_and_equals_boids_run_exactly(ros):
                            "--robots", "7", recorder=True)
     reference = _in_process(robot="turtlebot3_burger", max_cycles=150, robots=7)
     ours = Recording.from_parquet(out / "trajectory.parquet")
-    _assert_same_recording(ours, reference.recording, "turtlebot graph vs boids run")
+    assert_same_recording(ours, reference.recording, "turtlebot graph vs boids run")
     for name in ("headings", "angular_velocities", "native"):
         assert np.array_equal(getattr(ours, name), getattr(reference.recording, name)), name
     metrics = json.loads((out / "metrics.json").read_text())
@@ -161,10 +150,10 @@ def test_any_policy_runs_as_the_controller_node(ros, policy):
     ours = Recording.from_parquet(out / "trajectory.parquet")
     if policy == "learned":
         reference = _in_process("learned", seed=3, robots=7, max_cycles=120)
-        _assert_same_recording(ours, reference.recording, "learned policy graph vs boids run")
+        assert_same_recording(ours, reference.recording, "learned policy graph vs boids run")
     else:  # random: the same seeded draws as in-process (the controller resets it with the seed)
         reference = _in_process(policy, seed=3, robots=7, max_cycles=120)
-        _assert_same_recording(ours, reference.recording, "random policy graph vs boids run")
+        assert_same_recording(ours, reference.recording, "random policy graph vs boids run")
 
 
 def test_several_episodes_reset_the_controller_each_time(ros):
@@ -172,7 +161,7 @@ def test_several_episodes_reset_the_controller_each_time(ros):
     for index, seed in enumerate((5, 6)):
         ours = Recording.from_parquet(out / f"episode_{index:03d}" / "trajectory.parquet")
         reference = _in_process(seed=seed, max_cycles=60)
-        _assert_same_recording(ours, reference.recording, f"episode {index} (seed {seed})")
+        assert_same_recording(ours, reference.recording, f"episode {index} (seed {seed})")
 
 
 def test_a_walking_person_and_a_crowd_on_the_ros1_graph_equal_boids_run(ros):
@@ -184,7 +173,7 @@ def test_a_walking_person_and_a_crowd_on_the_ros1_graph_equal_boids_run(ros):
     reference = _in_process(scene="doorway", leader="person", crowd=3, robots=4,
                             max_cycles=150)
     ours = Recording.from_parquet(out / "trajectory.parquet")
-    _assert_same_recording(ours, reference.recording, "person and crowd graph vs boids run")
+    assert_same_recording(ours, reference.recording, "person and crowd graph vs boids run")
     assert np.array_equal(ours.pedestrians, reference.recording.pedestrians)
     metrics = json.loads((out / "metrics.json").read_text())
     assert json.dumps(metrics, sort_keys=True) == json.dumps(reference.metrics, sort_keys=True)
@@ -208,7 +197,7 @@ def test_real_time_graph_stays_within_tolerance_of_boids_run(ros):
     assert stats["mode"] == "real time" and 14.9 <= stats["wall_time"] <= 25, stats
     if stats["late_ticks"] == 0 and stats["timed_out"] == 0 and stats["stale"] == 0:
         # every answer arrived within its tick: the real-time run is the lockstep one
-        _assert_same_recording(ours, reference.recording, "punctual real-time graph")
+        assert_same_recording(ours, reference.recording, "punctual real-time graph")
 
 
 def test_killing_the_controller_stops_the_robots_after_the_timeout(ros):
@@ -244,7 +233,7 @@ def test_a_policy_node_drives_a_bare_odometry_source_and_is_reconfigured_live(ro
     out = ros.folder / "fake.json"
     controller = ros.boids("controller", "ros", "controller", "--robots", "4")
     robots = ros.node("fake", "fake_robots.py", "--robots", "4", "--ticks", "60", "--out",
-                      str(out), "--reconfigure-at", "35", "--leader-weight", "2.0")
+                      str(out), "--reconfigure-at", "35", "--leader-weight", "0.3")
     assert robots.wait(90) == 0, robots.output() + controller.output()
     tool = ros.boids("reconfigure", "ros", "reconfigure", "max_force=0.3", "horizon=5")
     assert tool.wait(60) == 0, tool.output()
@@ -262,21 +251,26 @@ def test_a_policy_node_drives_a_bare_odometry_source_and_is_reconfigured_live(ro
     before = np.linalg.norm(positions[20, 1:] - positions[20, 0], axis=1)
     after = np.linalg.norm(positions[-1, 1:] - positions[-1, 0], axis=1)
     assert np.all(after < before), (before, after)
-    # the markers carry each rule's weighted force; the leader term is w · (p_leader - p_i)
-    assert log["reconfigured"] == {"tick": 35, "leader_weight": 2.0, "param": 2.0}
+    # the markers carry each rule's weighted force as every picture of the flock draws it
+    # (boids_env.style): the leader term w · (p_leader - p_i), 0.5 m a metre, at most 0.25 m
+    # long; with the weight reconfigured to 0.3 its arrow is short of that cap
+    from boids_env import style
+
+    assert log["reconfigured"] == {"tick": 35, "leader_weight": 0.3, "param": 0.3}
     stamps = {s: i for i, s in enumerate(log["stamps"])}
-    weights = []
+    checked = {1.0: 0, 0.3: 0}
     for entry in log["markers"]:
         tick = stamps[entry["stamp"]]
         assert set(entry["arrows"]) == {"separation", "cohesion", "alignment", "leader"}
         offset = positions[tick, 0] - positions[tick, 1]
-        if tick >= 20 and np.linalg.norm(offset) > 0.1:
-            weights.append((tick, np.linalg.norm(entry["arrows"]["leader"]["1"])
-                            / np.linalg.norm(offset)))
-    early = [w for t, w in weights if t < 35]
-    late = [w for t, w in weights if t > 37]
-    assert early and late, weights
-    assert np.allclose(early, 1.0, atol=1e-4) and np.allclose(late, 2.0, atol=1e-4), weights
+        if tick < 20 or 35 <= tick <= 37 or np.linalg.norm(offset) <= 0.1:
+            continue  # the start-up hold, the switch
+        weight = 1.0 if tick < 35 else 0.3
+        drawn = style.arrow_vectors(np.array([weight * offset]))[0]
+        assert np.allclose(entry["arrows"]["leader"]["1"], drawn, atol=1e-4), (
+            tick, weight, entry["arrows"]["leader"]["1"], drawn)
+        checked[weight] += 1
+    assert checked[1.0] and checked[0.3], checked
 
 
 def test_unsynchronised_odometry_is_answered_at_the_control_rate(ros):
@@ -315,6 +309,6 @@ def test_lockstep_graph_with_ros_realism_reproduces_boids_run_with_it(ros):
     out, _ = _run_lockstep(ros, "--max-cycles", "150", "--seed", "4", "--realism", "ros")
     ours = Recording.from_parquet(out / "trajectory.parquet")
     reference = _in_process(seed=4, max_cycles=150, realism="ros")
-    _assert_same_recording(ours, reference.recording, "realism ros graph vs boids run")
+    assert_same_recording(ours, reference.recording, "realism ros graph vs boids run")
     ideal = _in_process(seed=4, max_cycles=150)
     assert not np.array_equal(ideal.recording.positions, ours.positions)  # realism acted

@@ -27,7 +27,7 @@ def test_importing_the_package_and_the_ros_modules_needs_no_rospy():
         import sys
         import boids_env, boids_env.eval.cli, boids_env.train.cli
         import boids_env.eval.ros.sim, boids_env.eval.ros.controller, boids_env.eval.ros.bags
-        import boids_env.eval.ros.protocol, boids_env.eval.ros.reconfigure
+        import boids_env.eval.graph.protocol, boids_env.eval.ros.reconfigure
         print(sorted(m for m in ("rospy", "genpy", "rosgraph") if m in sys.modules))
     """)
     assert out.strip() == "[]", out
@@ -67,7 +67,6 @@ def test_missing_ros_names_the_packages_to_install(tmp_path, monkeypatch):
     message = str(err.value)
     assert "apt-get install ros-core python3-rospy" in message and "Noetic" in message
     assert str(tmp_path) in message
-    assert not rospy_path.ros_available()
 
 
 def test_boids_ros_without_ros_is_a_clear_error(tmp_path):

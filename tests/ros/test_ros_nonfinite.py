@@ -10,8 +10,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from boids_env.eval.graph.protocol import CommandBoard, finite_commands, finite_leader_command
 from boids_env.eval.graph.sim import SimCore
-from boids_env.eval.ros.protocol import CommandBoard, finite_commands, finite_leader_command
 from boids_env.eval.ros.sim import SimNode
 
 

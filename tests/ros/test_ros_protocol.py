@@ -8,14 +8,14 @@ import threading
 import numpy as np
 import pytest
 
-from boids_env.eval.ros import reconfigure
-from boids_env.eval.ros.protocol import (
+from boids_env.eval.graph.protocol import (
     CommandBoard,
     EpisodeInfo,
     TickAssembler,
     is_continuation,
     stamp_ns,
 )
+from boids_env.eval.ros import reconfigure
 from boids_env.policies.reynolds_params import ReynoldsParams, reynolds_params
 
 

@@ -10,16 +10,14 @@ Without the ``ros2`` extra (eclipse-zenoh) these tests are skipped, unless
 from __future__ import annotations
 
 import os
-import signal
-import socket
 import subprocess
 import sys
 import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+from graph_support import Process, free_port
 
 REQUIRE_VARIABLE = "BOIDS_REQUIRE_ROS2"
 
@@ -32,41 +30,6 @@ def zenoh_or_skip():
             pytest.fail(f"{REQUIRE_VARIABLE}=1 but eclipse-zenoh is missing: {exc}")
         pytest.skip(f"the ros2 extra (eclipse-zenoh) is not installed: {exc}")
     return zenoh
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@dataclass
-class Process:
-    name: str
-    popen: subprocess.Popen
-    log: Path
-
-    def output(self) -> str:
-        return self.log.read_text(errors="replace") if self.log.exists() else ""
-
-    def wait(self, timeout: float) -> int:
-        try:
-            return self.popen.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            self.stop()
-            pytest.fail(f"{self.name} did not finish within {timeout} s; output:\n"
-                        f"{self.output()[-3000:]}")
-
-    def stop(self, timeout: float = 10.0) -> int | None:
-        """SIGINT (the node leaves the graph cleanly), then SIGKILL."""
-        if self.popen.poll() is None:
-            self.popen.send_signal(signal.SIGINT)
-            try:
-                self.popen.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                self.popen.kill()
-                self.popen.wait(timeout=timeout)
-        return self.popen.returncode
 
 
 @dataclass
@@ -135,18 +98,6 @@ class Ros2Graph:
         self.keep.extend(subs)  # undeclared when garbage collected: keep them
         return session, spy
 
-    @staticmethod
-    def wait_for_line(process: Process, text: str, timeout: float) -> None:
-        """Waits until ``process`` printed ``text`` (the simulator listens once it waits)."""
-        if not wait_until(lambda: text in process.output() or process.popen.poll() is not None,
-                          timeout) or text not in process.output():
-            pytest.fail(f"{process.name} never printed {text!r}; output:\n"
-                        f"{process.output()[-3000:]}")
-
-    @staticmethod
-    def wait_until(condition, timeout: float) -> bool:
-        return wait_until(condition, timeout)
-
 
 @pytest.fixture
 def ros2(tmp_path):
@@ -156,11 +107,3 @@ def ros2(tmp_path):
     for process in graph.processes:
         process.stop()
 
-
-def wait_until(condition, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if condition():
-            return True
-        time.sleep(0.02)
-    return condition()

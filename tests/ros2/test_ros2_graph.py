@@ -9,35 +9,23 @@ import json
 
 import numpy as np
 import pytest
+from graph_support import assert_same_recording, wait_until
 
 from boids_env.eval.run import run
 from boids_env.recording import Recording
 
 pytestmark = pytest.mark.slow
 
-FIELDS = ("positions", "velocities", "commanded", "time")
-
-
-def _assert_same_recording(ours: Recording, reference: Recording, what: str) -> None:
-    for name in FIELDS:
-        a, b = getattr(ours, name), getattr(reference, name)
-        assert a.shape == b.shape, f"{what}: {name} shape {a.shape} != {b.shape}"
-        bad = np.argwhere(a != b)
-        if len(bad):
-            where = tuple(bad[0][:2])  # (step, robot)
-            pytest.fail(f"{what}: {name} differs first at (step, robot) {where}: "
-                        f"{a[where]} vs {b[where]}")
-
 
 def _run_lockstep(ros2, *args: str, controller_args: tuple[str, ...] = (), spy: bool = False):
     out = ros2.folder / "sim_out"
     sim = ros2.boids("sim", "sim", "--lockstep", "--out", str(out), *args)
-    ros2.wait_for_line(sim, "waiting for", 60)
+    sim.wait_for_line("waiting for", 60)
     session = wire = None
     if spy:
         session, wire = ros2.spy()
         # the spy's subscription reaches the sim before tick 0: wait for the sim's tokens
-        assert ros2.wait_until(lambda: any("/MP/" in t for t in wire.tokens), 30)
+        assert wait_until(lambda: any("/MP/" in t for t in wire.tokens), 30)
     controller = ros2.boids("controller", "controller", *controller_args)
     assert sim.wait(240) == 0, sim.output()[-3000:] + controller.output()[-3000:]
     controller.stop()
@@ -50,7 +38,7 @@ def test_two_ros2_processes_reproduce_boids_run_exactly_on_the_default_case(ros2
     out, sim, _controller, wire = _run_lockstep(ros2, spy=True)
     reference = run("reynolds", out=None, seed=0, env_fields={}, quiet=True)
     ours = Recording.from_parquet(out / "trajectory.parquet")
-    _assert_same_recording(ours, reference.recording, "ROS 2 lockstep graph vs boids run")
+    assert_same_recording(ours, reference.recording, "ROS 2 lockstep graph vs boids run")
     metrics = json.loads((out / "metrics.json").read_text())
     assert json.dumps(metrics, sort_keys=True) == json.dumps(reference.metrics, sort_keys=True)
     assert metrics["steps"] == 746
@@ -144,7 +132,7 @@ def test_a_turtlebot3_on_a_map_with_twist_stamped_equals_boids_run_exactly(ros2)
     reference = run("reynolds", out=None, seed=0, quiet=True, env_fields=dict(
         robot="turtlebot3_burger", scene="lab", robots=5, max_cycles=120, lidar_rays=16))
     ours = Recording.from_parquet(out / "trajectory.parquet")
-    _assert_same_recording(ours, reference.recording, "turtlebot graph vs boids run")
+    assert_same_recording(ours, reference.recording, "turtlebot graph vs boids run")
     for name in ("headings", "angular_velocities", "native"):
         assert np.array_equal(getattr(ours, name), getattr(reference.recording, name)), name
     metrics = json.loads((out / "metrics.json").read_text())
@@ -182,7 +170,7 @@ def test_a_lyrical_graph_speaks_lyricals_hashes_and_equals_boids_run(ros2):
         ros2, "--robots", "4", "--max-cycles", "30", *net, controller_args=net, spy=True)
     reference = run("reynolds", out=None, seed=0, quiet=True,
                     env_fields=dict(robots=4, max_cycles=30))
-    _assert_same_recording(Recording.from_parquet(out / "trajectory.parquet"),
+    assert_same_recording(Recording.from_parquet(out / "trajectory.parquet"),
                            reference.recording, "lyrical graph vs boids run")
     by_topic = _check_samples(wire, "lyrical")
     assert len(by_topic["/robot_3/cmd_vel"]) == 31
@@ -197,7 +185,7 @@ def test_several_episodes_reset_the_controller_through_the_episode_topic(ros2):
         reference = run("reynolds", out=None, seed=seed, quiet=True,
                         env_fields=dict(robots=5, max_cycles=25))
         ours = Recording.from_parquet(out / f"episode_{index:03d}" / "trajectory.parquet")
-        _assert_same_recording(ours, reference.recording, f"episode {index} (seed {seed})")
+        assert_same_recording(ours, reference.recording, f"episode {index} (seed {seed})")
     assert "new episode (episode 1, seed 4)" in controller.output(), controller.output()
 
 
@@ -211,7 +199,7 @@ def test_a_walking_person_and_a_crowd_on_the_graph_equal_boids_run(ros2):
     out, _sim, _controller, wire = _run_lockstep(ros2, *args, spy=True)
     reference = run("reynolds", out=None, seed=0, quiet=True, env_fields=fields)
     ours = Recording.from_parquet(out / "trajectory.parquet")
-    _assert_same_recording(ours, reference.recording, "person and crowd graph vs boids run")
+    assert_same_recording(ours, reference.recording, "person and crowd graph vs boids run")
     assert np.array_equal(ours.pedestrians, reference.recording.pedestrians)
     metrics = json.loads((out / "metrics.json").read_text())
     assert json.dumps(metrics, sort_keys=True) == json.dumps(reference.metrics, sort_keys=True)

@@ -28,7 +28,7 @@ def main() -> None:
     parser.add_argument("--out", required=True)
     parser.add_argument("--unsynced", action="store_true")
     parser.add_argument("--reconfigure-at", type=int, default=None)
-    parser.add_argument("--leader-weight", type=float, default=2.0)
+    parser.add_argument("--leader-weight", type=float, default=0.3)
     parser.add_argument("--wait-controller", type=float, default=30.0)
     args = parser.parse_args()
 
@@ -52,6 +52,9 @@ def main() -> None:
     def on_markers(msg):
         arrows = {}
         for m in msg.markers:
+            if not m.points:  # a zero force: its arrow is deleted
+                arrows.setdefault(m.ns, {})[m.id] = [0.0, 0.0]
+                continue
             (a, b) = m.points
             arrows.setdefault(m.ns, {})[m.id] = [b.x - a.x, b.y - a.y]
         with lock:

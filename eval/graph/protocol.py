@@ -74,6 +74,13 @@ def odom_topic(robot: int) -> str:
     return f"/robot_{robot}/odom"
 
 
+def odometry_topics(robots: int, pedestrians: int = 0) -> list[str]:
+    """Every robot's odometry topic, then every pedestrian's of a crowd: what a controller
+    subscribes to (a tick waits for all of them)."""
+    return ([odom_topic(k) for k in range(robots)]
+            + [pedestrian_topic(k) for k in range(pedestrians)])
+
+
 def pedestrian_topic(pedestrian: int) -> str:
     """``/pedestrian_k/odom``: pedestrian k of the crowd (nav_msgs/Odometry in ``map``, its
     velocity in the twist), what a people tracker reports and the followers observe."""
