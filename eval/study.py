@@ -51,7 +51,7 @@ def study_groups(rq: int, metric: str, followers: int = 6) -> dict[str, np.ndarr
 
 
 def study_summary() -> pd.DataFrame:
-    """Mean and population std (ddof=0, as DESIGN section 5) per rq, level and metric."""
+    """Mean and population std (ddof=0, as the study reports them) per rq, level and metric."""
     runs = study_runs()
     runs = runs[(runs.rq != 3) | (runs.follower.astype(float) <= 6)]
     agg = runs.groupby(["rq", "level", "metric"], sort=False)["value"]

@@ -28,7 +28,7 @@ MAX_SUITE_BYTES = 1024 * 1024
 """A suite file larger than this (1 MiB) is refused before it is read."""
 
 CONTROLLED = {"robots": 13, "leader_speed": 0.55, "leader_weight": 1.0}
-"""The study's controlled values (DESIGN section 5)."""
+"""The study's controlled values (its Table III)."""
 
 PAPER = Suite("paper", tuple(
     sweep("rq1", "leader_speed", [(s, {"leader_speed": float(s)})

@@ -19,7 +19,7 @@ a random policy's; the one check every layer uses."""
 
 @dataclass(frozen=True)
 class WorldConfig:
-    """The physical world: arena, robots and the physics time step (DESIGN section 2)."""
+    """The physical world: arena, robots and the physics time step."""
 
     arena_half_size: float = 5.0
     """Half the side of the square arena (m); walls at ±arena_half_size. Paper: 10 m × 10 m."""

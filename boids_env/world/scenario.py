@@ -34,7 +34,7 @@ LEADER_MAX_SPEED = 2.0
 CURVE_SPEED_FACTOR = 1.5
 """A curve-following leader may command up to this × ``leader_speed`` to regain its path."""
 PATHS = ("square", "circle", "figure_eight", "waypoints", "random_waypoints", "external")
-"""Leader paths. ``square`` is the paper's; the others are opt-in (DESIGN section 2)."""
+"""Leader paths. ``square`` is the paper's; the others are opt-in."""
 LEADERS = tuple(LEADER_KINDS)
 """Who leads (the built-in kinds of :mod:`~boids_env.world.leader_kinds`): the study's robot
 (default), a person walked by the pedestrian model along the path (opt-in), or a recorded
@@ -44,7 +44,7 @@ walk replayed from ``leader_trajectory`` (opt-in)."""
 
 @dataclass(frozen=True)
 class ScenarioConfig:
-    """Group size, initial layout, leader path and episode end (DESIGN sections 2 and 6)."""
+    """Group size, initial layout, leader path and episode end ."""
 
     robots: int = 13
     """Group size, the leader included, as the study counts it (study: 7, 13, 19)."""
@@ -333,7 +333,7 @@ def layout_heading(scenario: ScenarioConfig, scene_name: str,
 
 def holding(time: float, startup_time: float) -> bool:
     """Whether the followers are held still at episode time ``time`` (s): the first
-    ``startup_time`` seconds after reset, the study's start-up (DESIGN §2). The one rule of the
+    ``startup_time`` seconds after reset, the study's start-up. The one rule of the
     env's ``startup_hold``, the ROS controller's and the Reynolds policy's hold."""
     return time < startup_time - 1e-9
 

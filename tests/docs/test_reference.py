@@ -153,7 +153,7 @@ def test_the_default_layout_is_the_studys(reference):
     page = reference.observations_page()
     default = page.split("## ")[1]
     rows = [line.split(" | ")[:3] for line in default.splitlines() if line.startswith("| `")]
-    # DESIGN section 6: own velocity, leader position, leader velocity, 18 slots of 5
+    # the study's layout: own velocity, leader position, leader velocity, 18 slots of 5
     assert rows == [["| `own_velocity`", "0–1", "2"], ["| `leader_position`", "2–3", "2"],
                     ["| `leader_velocity`", "4–5", "2"], ["| `neighbours`", "6–95", "90"]]
     assert "96 values per follower" in default

@@ -12,7 +12,7 @@ from boids_env.eval.robot_types import family_table, finding_matrix, robots_in
 from boids_env.eval.stats import analyse
 from boids_env.eval.suites import PAPER, ROBOT_TYPES, load_suite
 
-# the study's means (DESIGN section 5) per level, for a robot that behaves as its Spheros
+# the study's means (its Table V) per level, for a robot that behaves as its Spheros
 STUDY_LIKE = {"rq1": {"V_sep": (7.0, 0.16, 0.0), "V_coh": (0.13, 0.3, 2.35),
                       "V_align_unwrapped": (2.46, 2.19, 2.82)},
               "rq3": {"count_sep": (47, 9, 12), "count_coh": (0, 20, 55),
