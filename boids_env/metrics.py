@@ -1,7 +1,7 @@
 """The study's violation metrics and the extra flock metrics, as pure functions on arrays.
 
-One source for the env's rewards, for recordings and for the evaluation suite (the
-study's definitions: docs, explanation/study). Arrays put robots on the second-to-last axis with the leader first: positions
+One source for the env's rewards, for recordings and for the evaluation suite (the study's
+definitions). Arrays put robots on the second-to-last axis with the leader first: positions
 ``(..., N, 2)``; a leading time axis ``T`` makes the same functions work on whole episodes.
 
 - separation violation: |p_leader − p_i| < separation_threshold (0.7 m)

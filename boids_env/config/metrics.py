@@ -19,7 +19,7 @@ SAFE_WEIGHTS = {"reward_proximity": 1.0, "reward_contact": 4.0, "reward_wall": 2
 
 @dataclass(frozen=True)
 class MetricsConfig:
-    """Violation thresholds (all against the leader) and reward weights (docs: explanation/study)."""
+    """Violation thresholds (all against the leader) and reward weights (the study's)."""
 
     separation_threshold: float = 0.7
     """Separation violation when a follower is closer than this to the leader (m)."""

@@ -17,7 +17,7 @@ FRAMES = ("world", "leader")
 
 @dataclass(frozen=True)
 class ObservationConfig:
-    """What each follower senses (docs: the observations reference): exact positions and velocities."""
+    """What each follower senses: exact positions and velocities."""
 
     horizon: float = 1.0
     """Neighbour radius (m): robots within it, the leader included, fill the slots. Paper: 1.0."""

@@ -1,6 +1,6 @@
 """The study's initial grids and their extension to any group size, as pure geometry.
 
-The paper's grids for N = 7, 13 and 19 robots are reproduced cell for cell (docs: explanation/study);
+The paper's grids for N = 7, 13 and 19 robots are reproduced cell for cell;
 any other N extends the same grid behind the leader, nearest cells first, left before right.
 Positions are in metres, the leader at the origin; no randomness here (see ``scenario``).
 """

@@ -17,7 +17,7 @@ def clip(x, limit):
 
 
 def reference(pos, vel, p, dt=0.1):
-    """The study's controller (docs: explanation/study) written straight from full state, one follower at a time."""
+    """The study's controller written straight from full state, one follower at a time."""
     out = []
     for i in range(1, len(pos)):
         nbrs = [j for j in range(len(pos))
