@@ -13,7 +13,7 @@ from boids_env.config import PATHS
 from boids_env.extras import require
 from boids_env.policies.reynolds_params import PRESETS
 from boids_env.world.realism import REALISMS
-from boids_env.world.robots import PRESETS as ROBOTS
+from boids_env.world.robots import ROBOT_PRESETS as ROBOTS
 from boids_env.world.scenario import LEADERS
 
 if TYPE_CHECKING:

@@ -16,12 +16,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.policies.reynolds_params import ReynoldsParams
+from boids_env.policies.reynolds_params import TUNABLE, ReynoldsParams
 
-TUNABLE = (("1", "separation_weight", 0.1), ("2", "cohesion_weight", 0.1),
-           ("3", "alignment_weight", 0.1), ("4", "leader_weight", 0.1),
-           ("5", "horizon", 0.05), ("6", "desired_separation", 0.05))
-"""(key, Reynolds parameter, step) of what the keyboard tunes."""
+KEYS = tuple((t.key, name, t.step) for name, t in TUNABLE.items() if t.key is not None)
+"""(key, Reynolds parameter, step) of what the keyboard tunes (the tunables with a key)."""
 MAX_HORIZON = 2.0
 """Sensing radius of the live env (m): the tuned horizon can grow up to it."""
 ARROWS = {"up": (0.0, 1.0), "down": (0.0, -1.0), "left": (-1.0, 0.0), "right": (1.0, 0.0)}
@@ -78,8 +76,8 @@ class LiveControls:
             self.fast = not self.fast
         elif key == "r":
             self.restart = True
-        elif key in {k for k, _, _ in TUNABLE}:
-            self.selected = next(name for k, name, _ in TUNABLE if k == key)
+        elif key in {k for k, _, _ in KEYS}:
+            self.selected = next(name for k, name, _ in KEYS if k == key)
         elif key in ("+", "=", "[+]", "up_plus"):
             self.adjust(+1)
         elif key in ("-", "[-]", "_"):
@@ -94,7 +92,7 @@ class LiveControls:
         if self.params is None:
             self.say("this policy has no Reynolds parameters")
             return
-        step = next(s for _, name, s in TUNABLE if name == self.selected)
+        step = next(s for _, name, s in KEYS if name == self.selected)
         value = round(getattr(self.params, self.selected) + direction * step, 6)
         if self.selected == "horizon" and value > MAX_HORIZON:
             self.say(f"horizon must be <= {MAX_HORIZON} m (the live sensing radius)")
@@ -118,7 +116,7 @@ class LiveControls:
         (the message is shown apart, fading: :meth:`message_opacity`)."""
         lines = []
         if self.params is not None:
-            for key, name, _ in TUNABLE:
+            for key, name, _ in KEYS:
                 mark = ">" if name == self.selected else " "
                 lines.append(f"{mark}{key} {name} {getattr(self.params, name):.2f}")
         state = " ".join(s for s, on in (("PAUSED", self.paused), ("FAST", self.fast)) if on)

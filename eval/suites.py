@@ -22,7 +22,7 @@ from boids_env.eval.cases import (
 )
 from boids_env.policies.reynolds_params import reynolds_params
 from boids_env.untrusted import excerpt, parse_toml, quote_path, read_text, safe_name
-from boids_env.world.robots import PRESETS as ROBOT_PRESETS
+from boids_env.world.robots import ROBOT_PRESETS
 
 MAX_SUITE_BYTES = 1024 * 1024
 """A suite file larger than this (1 MiB) is refused before it is read."""

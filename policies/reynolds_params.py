@@ -61,6 +61,43 @@ RANGES: dict[str, Range] = {
 }
 """The range of every numeric field of :class:`ReynoldsParams` (its one check, which the
 reference page and the live panels read too)."""
+class Tunable(NamedTuple):
+    """A parameter the live window's keys and the ROS controller's panel change."""
+
+    step: float
+    """One key press's change (the live window)."""
+    text: str
+    """Its description (the panel's)."""
+    key: str | None = None
+    """The live window's key that selects it (None: the panel only)."""
+    low: float | None = None
+    """The panel's minimum where the range's lower bound is open (a small positive value)."""
+    sensed: bool = False
+    """Its maximum is the observations' sensing horizon, not its range's."""
+
+
+TUNABLE: dict[str, Tunable] = {
+    "separation_weight": Tunable(0.1, "weight of the separation rule", "1"),
+    "cohesion_weight": Tunable(0.1, "weight of the cohesion rule", "2"),
+    "alignment_weight": Tunable(0.1, "weight of the alignment rule", "3"),
+    "leader_weight": Tunable(0.1, "weight of the leader term (study: 1.0, 1.1, 1.2)", "4"),
+    "horizon": Tunable(0.05, "neighbour radius (m), up to the sensing horizon", "5", 0.01,
+                       sensed=True),
+    "desired_separation": Tunable(0.05, "neighbours closer than this push away (m)", "6"),
+    "max_speed": Tunable(0.01, "commanded speed limit (m/s)", low=0.01),
+    "max_force": Tunable(0.001, "steering force limit (N)", low=0.001),
+}
+"""What may be tuned while a flock runs, and how (:data:`RANGES` bounds each)."""
+
+
+def tunable_range(name: str, sensing_horizon: float) -> tuple[float, float]:
+    """The (min, max) a panel offers for tunable ``name``: its range (an open lower bound as
+    the tunable's small positive ``low``; the horizon's maximum the sensing horizon)."""
+    r, t = RANGES[name], TUNABLE[name]
+    low = t.low if r.low_open and t.low is not None else r.low
+    return float(low), float(sensing_horizon if t.sensed else r.high)
+
+
 FLAGS = ("follow_route", "scale_to_robot", "walls_first")
 """Its on/off fields (``obstacle_avoidance`` is a flag or None: automatic)."""
 

@@ -259,12 +259,12 @@ def _robot_defaults(kwargs: Mapping[str, Any]) -> dict[str, Any]:
     """The fields robot preset ``kwargs["robot"]`` sets, and the scenario scaled to the robot
     (its top speed and size, as given or the preset's); nothing for an unknown preset (the
     world section then refuses it by name)."""
-    from boids_env.world.robots import PRESETS, scaled_scenario
+    from boids_env.world.robots import ROBOT_PRESETS, scaled_scenario
 
     name = kwargs["robot"]
-    if not isinstance(name, str) or name not in PRESETS:
+    if not isinstance(name, str) or name not in ROBOT_PRESETS:
         return {}
-    fields = PRESETS[name].fields()
+    fields = ROBOT_PRESETS[name].fields()
     speed = kwargs.get("max_speed", fields["max_speed"])
     radius = kwargs.get("robot_radius", fields["robot_radius"])
     try:

@@ -44,7 +44,7 @@ class WorldConfig:
     ROS ``map_server`` YAML or a shapes file (``.toml`` / ``.json``). Choosing one also sets its
     leader path and start unless given (``map=PATH`` is the same as ``scene=PATH``)."""
     robot: str = "sphero"
-    """The robot preset the robot fields come from (:data:`boids_env.world.robots.PRESETS`:
+    """The robot preset the robot fields come from (:data:`boids_env.world.robots.ROBOT_PRESETS`:
     ``sphero``, the study's; ``sphero_sprk``, ``turtlebot3_burger``, ``gritsbot``). Choosing
     one sets ``robot_radius``, ``robot_mass``, ``max_speed``, ``drive_force``, ``drive``,
     ``max_turn_rate``, ``max_turn_acceleration``, ``heading_gain`` and ``velocity_law``, and
@@ -89,10 +89,10 @@ class WorldConfig:
     def _check_robot(self) -> None:
         """The robot model's fields: a known preset, drive and velocity law, the turn limits
         in range, and whatever the drive itself requires (:meth:`RobotModel.check_config`)."""
-        from boids_env.world.robots import PRESETS, VELOCITY_LAWS, drive_model
+        from boids_env.world.robots import ROBOT_PRESETS, VELOCITY_LAWS, drive_model
 
-        if self.robot not in PRESETS:
-            raise ValueError(f"robot must be one of {sorted(PRESETS)}, got {self.robot!r}")
+        if self.robot not in ROBOT_PRESETS:
+            raise ValueError(f"robot must be one of {sorted(ROBOT_PRESETS)}, got {self.robot!r}")
         model = drive_model(self.drive)
         if self.velocity_law not in VELOCITY_LAWS:
             raise ValueError(f"velocity_law must be one of {VELOCITY_LAWS}, got "

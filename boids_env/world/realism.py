@@ -43,7 +43,7 @@ REALISMS = ("none", "ros")
 OFF: dict[str, Any] = {"stall": False, "stall_margin": 0.0, "command_noise": 0.0,
                        "timing_jitter": 0.0, "jitter_leader": False, "start_jitter": 0.0,
                        "command_latency": 0, "stale_observations": 0.0, "drop_commands": 0.0}
-PRESETS: dict[str, dict[str, Any]] = {
+REALISM_PRESETS: dict[str, dict[str, Any]] = {
     "none": OFF,
     # Stage's stall, staggered node start-up and unsynchronised pose topics: the best of the
     # combinations scored on 16 blocks of 5 seeds, confirmed on 8 held-out blocks (docs:
@@ -100,7 +100,7 @@ class RealismConfig:
 
     def resolved(self) -> dict[str, Any]:
         """Every mechanism's value: the field's, or the preset's where the field is None."""
-        preset = PRESETS[self.realism]
+        preset = REALISM_PRESETS[self.realism]
         return {f.name: preset[f.name] if getattr(self, f.name) is None else getattr(self,
                                                                                       f.name)
                 for f in fields(self) if f.name != "realism"}

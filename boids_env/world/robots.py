@@ -109,7 +109,7 @@ class RobotPreset:
                 "heading_gain": self.heading_gain, "velocity_law": self.velocity_law}
 
 
-PRESETS: dict[str, RobotPreset] = {
+ROBOT_PRESETS: dict[str, RobotPreset] = {
     # The study's robot as the study simulated it: holonomic, capped at 0.5 m/s, 1 N drive.
     "sphero": RobotPreset(0.036, 0.18, 0.5, 1.0),
     # A real Sphero SPRK+ as the sphero_sprk_ros driver moves it: cmd_vel -> roll(speed,

@@ -1,7 +1,7 @@
 """A new robot drive: a holonomic robot whose motors ignore commands below a dead band.
 
 In the repository this class would sit in ``boids_env/world/robots.py`` beside
-``Holonomic`` (with its ``DRIVES`` entry), a preset in ``PRESETS`` if a real robot has it,
+``Holonomic`` (with its ``DRIVES`` entry), a preset in ``ROBOT_PRESETS`` if a real robot has it,
 and a test: every other part of the code asks the drive, never its name.
 """
 

@@ -18,21 +18,7 @@ from dataclasses import asdict, replace
 from types import SimpleNamespace
 from typing import Any
 
-from boids_env.policies.reynolds_params import ReynoldsParams
-
-TUNABLE: dict[str, tuple[float, float | None, str]] = {
-    "separation_weight": (0.0, 100.0, "weight of the separation rule"),
-    "cohesion_weight": (0.0, 100.0, "weight of the cohesion rule"),
-    "alignment_weight": (0.0, 100.0, "weight of the alignment rule"),
-    "leader_weight": (0.0, 100.0, "weight of the leader term (study: 1.0, 1.1, 1.2)"),
-    "horizon": (0.01, None, "neighbour radius (m), up to the sensing horizon"),
-    "desired_separation": (0.0, 100.0, "neighbours closer than this push away (m)"),
-    "max_speed": (0.01, 5.0, "commanded speed limit (m/s)"),
-    "max_force": (0.001, 1000.0, "steering force limit (N)"),
-}
-"""(min, max, description) of each parameter the panel changes: ReynoldsParams' own ranges
-(its open lower bounds as a small positive minimum); the horizon's maximum is the controller's
-sensing horizon (None here), since the observations hold no robot beyond it."""
+from boids_env.policies.reynolds_params import TUNABLE, ReynoldsParams, tunable_range
 
 
 def config_type(params: ReynoldsParams, sensing_horizon: float) -> SimpleNamespace:
@@ -44,8 +30,9 @@ def config_type(params: ReynoldsParams, sensing_horizon: float) -> SimpleNamespa
     """
     values = asdict(params)
     parameters = []
-    for bit, (name, (low, high, text)) in enumerate(TUNABLE.items()):
-        top = sensing_horizon if high is None else high
+    for bit, (name, tunable) in enumerate(TUNABLE.items()):
+        low, top = tunable_range(name, sensing_horizon)
+        text = tunable.text
         parameters.append({
             "name": name, "type": "double", "default": float(values[name]),
             "level": 1 << bit, "description": text, "min": float(low), "max": float(top),

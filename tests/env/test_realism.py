@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from boids_env import EnvConfig, parallel_env
-from boids_env.world.realism import PRESETS
+from boids_env.world.realism import REALISM_PRESETS
 
 
 def run(env, steps, act, seed=0):
@@ -31,7 +31,7 @@ def test_ros_preset_is_deterministic_per_seed_and_differs_across_seeds():
     assert all(np.array_equal(x.positions, y.positions) for x, y in zip(a, b, strict=True))
     assert not np.array_equal(a[-1].positions, c[-1].positions)
     resolved = EnvConfig.from_kwargs(realism="ros").realism.resolved()
-    assert resolved == {k: v for k, v in PRESETS["ros"].items()}
+    assert resolved == {k: v for k, v in REALISM_PRESETS["ros"].items()}
     over = EnvConfig.from_kwargs(realism="ros", command_noise=0.0).realism.resolved()
     assert over["command_noise"] == 0.0 and over["stall"] is True
 
