@@ -63,3 +63,20 @@ def test_a_new_leader_kind_is_one_registered_object_every_part_asks():
         print("checked")
     """)
     assert "a wheelchair user of radius 0.35 m" in out and "checked" in out, out
+
+
+def test_a_new_suite_is_a_toml_file_the_runner_takes(tmp_path):
+    from boids_env.eval.runner import PolicySpec, run_suite
+    from boids_env.eval.suites import load_suite
+
+    suite = load_suite(SNIPPETS / "new_suite.toml")
+    assert suite.name == "doorway_speeds"
+    assert [c.name for c in suite.cases] == ["leader_speed=0.4", "leader_speed=0.5",
+                                            "crowded doorway"], suite.cases
+    table = run_suite([PolicySpec("reynolds")], suite, tmp_path / "out", backend="inline",
+                      progress=False)
+    assert len(table) == 3 * 2, table  # cases × seeds, one row each
+    assert (table["steps"] == 60).all(), table["steps"]
+    robots = {c.name: c.env["robots"] for c in suite.cases}
+    assert robots == {"leader_speed=0.4": 7, "leader_speed=0.5": 7, "crowded doorway": 13}
+    assert {c.name: c.env["scene"] for c in suite.cases} == dict.fromkeys(robots, "doorway")
