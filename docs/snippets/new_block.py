@@ -3,7 +3,7 @@
 A block is one ``BlockSpec`` appended to the table ``SPECS`` in
 ``boids_env/observations/blocks.py`` (at the end: a new block never moves an old one, so
 the layouts saved with trained models keep their meaning). Its switch is a field of
-``ObservationConfig`` in ``boids_env/config.py``, and a test shows it; that is all. The
+``ObservationConfig`` in ``boids_env/config/observation.py``, and a test shows it; that is all. The
 layout, the observation ``Box``, the sensing-noise masks, the fill loop, the block list
 saved in a model's ``boids.json``, the model cards' layout reasons, the fields a trained
 model pins and the reference page all read the table.
