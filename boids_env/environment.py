@@ -343,8 +343,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             commands = np.zeros_like(commands)
         crowd = None
         if self._people is not None:
-            self._people.advance(time)
-            crowd = (self._people.pedestrians - world.pedestrian_positions) / cfg.world.dt
+            crowd = self._people.walk(time, world)
         full = np.empty((len(commands) + 1, 2))
         full[0] = leader.command(time, world.positions[0])
         if cfg.safety.safety_filter and not native:
