@@ -336,8 +336,7 @@ class BoidsEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
             hold=sc.startup_hold and scenario.holding(time, sc.startup_time))
         crowd = None
         if self._people is not None:
-            self._people.advance(time)
-            crowd = (self._people.pedestrians - world.pedestrian_positions) / cfg.world.dt
+            crowd = self._people.walk(time, world)
         full = np.empty((len(commands) + 1, 2))
         full[0] = leader.command(time, world.positions[0])
         commands = safe_commands(commands, cfg, self._scene, world.positions, world.velocities,

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.config import fastest_speed
 from boids_env.observations import Observer
 from boids_env.rewards import Rewards
 from boids_env.world import scenario
@@ -152,4 +153,5 @@ def build_world(config: EnvConfig, initial: FloatArray, headings: FloatArray | N
                  leader_radius=sc.leader_radius,
                  pedestrians=None if people is None else people.start_pedestrians,
                  pedestrian_radius=sc.person_radius,
-                 leader_kinematic=sc.leader_kind.kinematic(sc))
+                 leader_kinematic=sc.leader_kind.kinematic(sc),
+                 people_speed=fastest_speed(config)[0])

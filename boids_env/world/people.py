@@ -6,11 +6,14 @@ model (collision-free, velocity-based, with a reaction time that smooths turns a
 anticipation of the others' motion) steps at :data:`PEDESTRIAN_DT` inside each control period.
 The person walks to its path's corners in turn at a preferred speed that varies slowly
 (a seeded Ornstein–Uhlenbeck factor around 1) and stops for a seeded while at each corner;
-pedestrians walk to random goals in the walkable area, a new one on arrival. Nobody here sees
-the robots (0.18 kg robots do not steer people): the world moves the people as kinematic
-bodies, and robots collide with them rigidly. A replayed walk (``leader="trajectory"``) among
-a crowd is a standing agent of the simulation on the disc the person sweeps in each period,
-put in anew every period, so the pedestrians walk around it.
+pedestrians walk to random goals in the walkable area, a new one on arrival. The pedestrians
+see the robots as people see a robot on the floor: each period every robot is a standing agent
+of the simulation on its disc (:meth:`People.advance`'s ``robots``), put in anew every period,
+so they walk around robots instead of through them; the person leading does not (it leads;
+the robots keep out of its way). The world moves the people's bodies at the velocity that
+takes them to the simulation's positions, never faster than they walk, and robots collide
+with them rigidly. A replayed walk (``leader="trajectory"``) among a crowd is a standing
+agent the same way, so the pedestrians walk around it.
 
 Deterministic: JuPedSim's model is seeded from the episode's stream and every draw here
 comes from one ``np.random.Generator``; the same seed gives the same walk bit for bit (JuPedSim
@@ -65,6 +68,9 @@ refuses an agent overlapping another)."""
 MIN_WALKER_RADIUS = 0.05
 """Smallest disc (m) of a replayed person put into JuPedSim; a pedestrian nearer than this
 leaves none that period."""
+MIN_ROBOT_RADIUS = 0.01
+"""Smallest disc (m) of a robot put into JuPedSim; a pedestrian nearer than this leaves none
+that period."""
 PLACEMENT_TRIES = 2_000
 """Random start or goal draws tried before giving up."""
 
@@ -202,6 +208,9 @@ class People:
                 self._ids.append(add(p, v))
                 self._agent(len(self._ids) - 1).target = tuple(self._free_point().tolist())
         self._walker: int | None = None  # JuPedSim's id of the replayed person's disc
+        self._robot_discs: list[int] = []  # JuPedSim's ids of this period's robot discs
+        self._robot_log: list[FloatArray | None] = []  # the robots each period saw (replay)
+        self._robot_radius = 0.0
         self._add = add
         self.steps = 0
         self.positions = self._read()
@@ -256,18 +265,29 @@ class People:
         return starts
 
     # ------------------------------------------------------------------------ stepping
-    def advance(self, t: float) -> FloatArray:
+    def advance(self, t: float, robots: FloatArray | None = None,
+                robot_radius: float = 0.0) -> FloatArray:
         """Moves everyone by one control period starting at time ``t`` (s); returns the new
-        positions (K, 2), the person first when there is one."""
+        positions (K, 2), the person first when there is one. ``robots`` (R, 2): where the
+        robots are (m), discs of ``robot_radius`` the crowd walks around this period (None:
+        the crowd sees none)."""
         a = self._args
+        self._robot_log.append(None if robots is None else np.array(robots, dtype=float))
+        self._robot_radius = robot_radius
         if self._walker is not None:
             self._sim.mark_agent_for_removal(self._walker)
+        for disc in self._robot_discs:
+            self._sim.mark_agent_for_removal(disc)
+        self._robot_discs = []
         if self.has_person:
             self._steer_person(t, a)
         for k in range(self._iterations):
             self._sim.iterate()
-            if k == 0 and a["walk"] is not None:  # the last period's disc is gone now
-                self._place_walker(t)
+            if k == 0:  # the last period's discs are gone now
+                if a["walk"] is not None:
+                    self._place_walker(t)
+                if robots is not None and a["crowd"]:
+                    self._place_robots(np.asarray(robots, dtype=float), robot_radius)
         self.steps += 1
         agents = [self._sim.agent(i) for i in self._ids]  # looked up once for both uses
         self.positions = np.array([agent.position for agent in agents],
@@ -327,6 +347,26 @@ class People:
             except RuntimeError:  # JuPedSim found two of its agents too close: none now
                 self._walker = None
 
+    def _place_robots(self, robots: FloatArray, radius: float) -> None:
+        """Puts every robot into JuPedSim for this period: a standing agent on its disc
+        (``radius`` + :data:`ROBOT_ROOM`), so the pedestrians steer around it. JuPedSim
+        refuses an agent overlapping another: a disc shrinks to the room the people leave
+        (none below :data:`MIN_ROBOT_RADIUS`, or a refusal: no disc this period; the robot's
+        body still collides with theirs)."""
+        now = self._read()
+        body = self.radius + ROBOT_ROOM
+        for x, y in robots.tolist():
+            room = radius + ROBOT_ROOM
+            if len(now):
+                gaps = np.hypot(now[:, 0] - x, now[:, 1] - y)
+                room = min(room, float(gaps.min()) - body - WALKER_ROOM)
+            if room < MIN_ROBOT_RADIUS:
+                continue
+            try:
+                self._robot_discs.append(self._add(np.array([x, y]), 0.0, room))
+            except RuntimeError:  # outside the walkable area, or against another disc
+                continue
+
     def _retarget_crowd(self, agents: list[Any]) -> None:
         """Pedestrians that reached their goal get a new random one; those stuck for
         :data:`STUCK_TIME` give way (a new goal near them). ``agents``: JuPedSim's agents in
@@ -348,6 +388,17 @@ class People:
                 self._past[0] = self._past[0].copy()
                 self._past[0][k] = (tx, ty)  # judged again a full STUCK_TIME later
 
+    def walk(self, t: float, world: Any) -> FloatArray:
+        """Advances the people by the control period from ``t`` (s), the robots of ``world``
+        (a :class:`~boids_env.world.space.World`) as obstacles the crowd walks around, and
+        returns the crowd's body velocities (P, 2) that take each body to its pedestrian's
+        new position, each within that pedestrian's walking speed (a body held back by a
+        robot catches up no faster than it walks, and never flings what it meets)."""
+        robots = world.positions[1:] if world.person_leader else world.positions
+        self.advance(t, robots, world.config.robot_radius)
+        return within_speeds((self.pedestrians - world.pedestrian_positions) / self.dt,
+                             self.speeds)
+
     @property
     def pedestrians(self) -> FloatArray:
         """The crowd's positions (P, 2) (m)."""
@@ -355,7 +406,8 @@ class People:
 
     # --------------------------------------------------------------------------- pickle
     def __getstate__(self) -> dict[str, Any]:
-        return {"args": self._args, "rng_state": self._rng_state, "steps": self.steps}
+        return {"args": self._args, "rng_state": self._rng_state, "steps": self.steps,
+                "robots": list(self._robot_log), "robot_radius": self._robot_radius}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         # JuPedSim cannot be copied: rebuild from the same draws and replay every period
@@ -364,5 +416,17 @@ class People:
         rng = np.random.default_rng()
         rng.bit_generator.state = self._rng_state
         self._build(rng)
-        for k in range(state["steps"]):
-            self.advance(k * self.dt)  # the env advances at world.time = steps · dt
+        radius = state.get("robot_radius", 0.0)
+        for k, robots in enumerate(state.get("robots", [None] * state["steps"])):
+            self.advance(k * self.dt, robots, radius)  # the env's time: steps · dt
+
+
+def within_speeds(velocities: FloatArray, limits: FloatArray | float) -> FloatArray:
+    """``velocities`` (K, 2) with each row longer than its limit (m/s; ``limits`` (K,) or one
+    for all) scaled down to it, elementwise (the same bits on every CPU)."""
+    speed = np.sqrt(velocities[:, 0] * velocities[:, 0] + velocities[:, 1] * velocities[:, 1])
+    over = speed > limits
+    if not over.any():
+        return velocities
+    scale = np.where(over, np.asarray(limits, dtype=float) / np.where(over, speed, 1.0), 1.0)
+    return velocities * scale[:, None]

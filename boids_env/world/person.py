@@ -19,9 +19,9 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env.world.leader_base import Leader
+from boids_env.world.people import GAIT_RANGE, People, within_speeds
 
 if TYPE_CHECKING:
-    from boids_env.world.people import People
     from boids_env.world.scenario import ScenarioConfig
     from boids_env.world.scene import Scene
 
@@ -57,8 +57,14 @@ class PersonLeader(Leader):
         period (the env advances the people first)."""
         target = self.people.positions[0]
         self.finished = self.people.finished
-        return np.array([(target[0] - position[0]) / self.dt,
-                         (target[1] - position[1]) / self.dt])
+        velocity = np.array([[(target[0] - position[0]) / self.dt,
+                              (target[1] - position[1]) / self.dt]])
+        return within_speeds(velocity, self.top_speed)[0]  # never faster than it walks
+
+    @property
+    def top_speed(self) -> float:
+        """The fastest the person walks (m/s): its preferred speed at its fastest gait."""
+        return self.speed * GAIT_RANGE[1]
 
     @property
     def nominal_duration(self) -> float:

@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 
 from boids_env.config.world import WorldConfig
 from boids_env.metrics import CONTACT_TOLERANCE
+from boids_env.world.invariants import PhysicsGuard
 from boids_env.world.robots import make_model
 from boids_env.world.scene import Scene
 
@@ -109,6 +110,8 @@ class World:
         pedestrians: (P, 2) initial positions of the crowd (m): discs like the person's, of
             ``pedestrian_radius``, tracking :meth:`step`'s ``pedestrian_velocities``.
         pedestrian_radius: the pedestrians' radius (m).
+        people_speed: the fastest a person (the leader or a pedestrian) walks (m/s): the
+            guard's limit for people, and for robots where people push them.
 
     People walk among holonomic robots only (the robot models with a heading steer their
     control bodies within a period, which a person's or a pedestrian's body does not take).
@@ -117,7 +120,8 @@ class World:
     def __init__(self, config: WorldConfig, positions: npt.ArrayLike,
                  scene: Scene | None = None, headings: npt.ArrayLike | None = None, *,
                  leader_radius: float | None = None, pedestrians: npt.ArrayLike | None = None,
-                 pedestrian_radius: float = 0.22, leader_kinematic: bool = False) -> None:
+                 pedestrian_radius: float = 0.22, leader_kinematic: bool = False,
+                 people_speed: float = 0.0) -> None:
         self.config = config
         if scene is None:
             from boids_env.world.scenes import load_scene
@@ -167,6 +171,12 @@ class World:
         self.pedestrian_velocities = np.zeros((self.p, 2))
         self.model.reset(self, None if headings is None else np.asarray(headings, float))
         self._refresh()
+        self.guard: PhysicsGuard | None = None
+        """Checks every step for bodies in walls or too fast, in a world with people (what
+        can push a robot harder than its drive): :mod:`~boids_env.world.invariants`."""
+        if person or self.p:
+            self.guard = PhysicsGuard(scene, config.robot_radius, pedestrian_radius,
+                                      max(config.max_speed, people_speed), people_speed)
 
     def _add_disc(self, position: FloatArray, mass: float, radius: float) -> pymunk.Body:
         """A rigid, frictionless disc of ``mass`` with infinite moment (a person does not
@@ -264,6 +274,15 @@ class World:
         self.model.advance(self, run)
         self.steps += 1
         self._refresh()
+        if self.guard is not None:
+            people = self.pedestrian_positions
+            moving = self.pedestrian_velocities
+            if self.person_leader:  # robot 0 is a person's body
+                people = np.concatenate([self.positions[:1], people])
+                moving = np.concatenate([self.velocities[:1], moving])
+            first = 1 if self.person_leader else 0
+            self.guard.check(self.steps, self.positions[first:], self.velocities[first:],
+                             people, moving)
 
     def _people_velocities(self, w: FloatArray) -> None:
         """Writes the people's rows of the velocity buffer ``w`` (after the robots'): a person
