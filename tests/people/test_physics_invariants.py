@@ -1,7 +1,7 @@
 """People never break the physics: over long crowded episodes no body gets into a wall, no
-pedestrian walks faster than the crowd's fastest speed, no robot moves faster than a walking person can
-push it, and the guard that checks this on every step (boids_env.world.invariants) says so
-when it is violated."""
+pedestrian walks faster than the crowd's fastest speed, no robot moves faster than a walking
+person can push it, and the guard that checks this on every step
+(boids_env.world.invariants) says so when it is violated."""
 
 import warnings
 
