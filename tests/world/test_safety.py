@@ -197,12 +197,13 @@ def test_a_person_leading_is_kept_off_at_its_own_width():
 
 def test_pedestrians_are_kept_off_as_far_as_the_robots_can():
     """Followers driven at their nearest pedestrian among 6: unfiltered they are in contact
-    with a person 9 % of the follower-steps; the filter, which now keeps pedestrians off too,
-    cuts that (pedestrians still walk into robots) and halves the time inside 0.45 m."""
+    with a person 1.7 % of the follower-steps (the pedestrians walk around robots, but a
+    robot driven at one catches it) and within 0.45 m 12 %; the filter, which keeps
+    pedestrians off too, cuts both (measured: to 0)."""
     bodies = 0.22 + 0.036
     free = _person_run(False, crowd=6)
     kept = _person_run(True, crowd=6, safety_pedestrian_distance=0.45)
-    assert (free < bodies).mean() > 0.05
+    assert (free < bodies).mean() > 0.01 and (free < 0.45).mean() > 0.05
     assert (kept < bodies).mean() < 0.3 * (free < bodies).mean()
     assert (kept < 0.45).mean() < 0.6 * (free < 0.45).mean()
 
