@@ -1,15 +1,21 @@
 """Range checks of the config dataclasses: a ``ValueError`` naming the field, the value and
-the allowed range (STYLE rule 3)."""
+the allowed range (STYLE rule 3); and :func:`from_fields`, a dataclass of a table whose every
+key must be one of its fields."""
 
 from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from contextvars import ContextVar
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING, Any, TypeVar
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+T = TypeVar("T", bound="DataclassInstance")
 
 
 @dataclass(frozen=True)
@@ -89,6 +95,18 @@ def flag(name: str, value: Any) -> bool:
     if not isinstance(value, bool):
         raise ValueError(f"{name} must be True or False, got {value!r}")
     return value
+
+
+def from_fields(cls: type[T], data: Mapping[str, Any], what: str,
+                shown: Callable[[list[str]], str] = repr) -> T:
+    """The dataclass ``cls`` of a table of its fields, which checks their values; a key that
+    is no field is refused by name (``what``: the table in the message, ``"training
+    config"``; ``shown``: how the unknown keys are quoted)."""
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"unknown {what} field(s) {shown(unknown)}; known: {sorted(known)}")
+    return cls(**data)
 
 
 def set_field(obj: object, name: str, value: Any) -> None:

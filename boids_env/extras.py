@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
+from types import ModuleType
 
 EXTRAS: dict[str, tuple[str, ...]] = {
     "render": ("pygame", "imageio", "tqdm"),
@@ -48,3 +50,12 @@ def require(*extras: str, purpose: str) -> None:
     hint = f" ({TORCH_HINT})" if "train" in lacking else ""
     raise MissingExtraError(f"{purpose} needs the {names} extra ({detail} not installed): "
                             f"pip install 'boids-env[{names}]'{hint}")
+
+
+def import_extra(module: str, message: str) -> ModuleType:
+    """``module``, imported where it is first needed; where it is missing, an ``ImportError``
+    with ``message`` (what needs it and the ``pip install`` line), the cause chained."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise ImportError(message) from exc

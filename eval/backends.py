@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from boids_env.eval.pool import available_cores, guarded, run_isolated
+from boids_env.extras import import_extra
 
 Record = Callable[[Any, bool, dict[str, Any]], None]
 """Called with ``(task, ok, row)`` for every task: its metrics row, or its failure row."""
@@ -52,10 +53,7 @@ def _execute_ray(tasks: Sequence[Any], run: Callable[[Any], dict[str, Any]],
     """Ray tasks with the process backend's isolation: any exception is a failure row, a
     crashed worker fails only its task (no retries), and at most ``workers`` tasks are in
     flight so each is timed from when it starts running."""
-    try:
-        import ray
-    except ImportError as exc:
-        raise ImportError("backend='ray' needs: pip install 'boids-env[ray]'") from exc
+    ray = import_extra("ray", "backend='ray' needs: pip install 'boids-env[ray]'")
     started = not ray.is_initialized()
     if started:
         ray.init(include_dashboard=False, log_to_driver=False)

@@ -1,6 +1,7 @@
 """The ``boids run``, ``boids eval`` and ``boids report`` subcommands: argument parsing only;
 each command's code is imported when it runs. :mod:`boids_env.train.cli` composes them into the
-``boids`` command."""
+``boids`` command. A command's help is its handler's docstring
+(:func:`~boids_env.eval.flags.add_command`)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from boids_env.config import EnvConfig
 from boids_env.eval.flags import (
     POLICY_HELP,
     TRUST_HELP,
+    add_command,
     add_env_args,
     add_live_args,
     env_fields,
@@ -38,17 +40,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     _report_parser(sub)
     add_ros_parser(sub)
     add_ros2_parser(sub)
-    _scenes_parser(sub)
+    add_command(sub, "scenes", _cmd_scenes)
     _select_parser(sub)
 
 
 def _run_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="run one episode of a policy, print its metrics, save files",
-                       description="Run one episode: prints V_sep / V_coh / V_align and the "
-                       "extra flock and safety metrics; writes metrics.json, "
-                       "trajectory.parquet, config.json and manifest.json to --out (and a "
-                       "video with --video, ROS bags with --bag / --mcap). --out must be "
-                       "empty or new unless --overwrite.")
+    p = add_command(sub, "run", _cmd_run)
     p.add_argument("--policy", default="reynolds", help=POLICY_HELP)
     p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
     add_env_args(p, "leader path (square)", "seed (0)")
@@ -79,7 +76,6 @@ def _run_parser(sub: argparse._SubParsersAction) -> None:
                    help="speed-up of the live window's fast mode, key f, with --render human "
                    f"(a number in (0, {MAX_FAST:g}]; 4)")
     add_live_args(p)
-    p.set_defaults(func=_cmd_run)
 
 
 def parse_start(text: str) -> float:
@@ -133,6 +129,12 @@ def _needs_people(fields: dict[str, Any]) -> bool:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    """run one episode of a policy, print its metrics, save files
+
+    Run one episode: prints V_sep / V_coh / V_align and the extra flock and safety metrics; writes
+    metrics.json, trajectory.parquet, config.json and manifest.json to --out (and a video with
+    --video, ROS bags with --bag / --mcap). --out must be empty or new unless --overwrite.
+    """
     _check_run_flags(args)
     if args.render == "human" and args.live is not None:
         raise ValueError("--live foxglove serves the episode to Foxglove; --render human "
@@ -173,13 +175,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _eval_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("eval", help="rerun the study's experiments (or another suite) for "
-                       "one or more policies, with statistics, figures and a report",
-                       description="Runs every (policy, case, seed) episode of a suite in "
-                       "parallel (resumable), writes results.parquet/.csv, the statistics, "
-                       "figures and report.md/report.html to --out. Exits 1 when some "
-                       "episodes failed (listed in errors.jsonl and the report), 2 for bad "
-                       "arguments, 130 when interrupted (finished episodes are kept).")
+    p = add_command(sub, "eval", _cmd_eval)
     p.add_argument("--policy", action="append", default=None,
                    help=POLICY_HELP + "; repeat to compare policies (first = baseline)")
     p.add_argument("--trust-model", action="store_true", help=TRUST_HELP)
@@ -222,10 +218,17 @@ def _eval_parser(sub: argparse._SubParsersAction) -> None:
                    "(only the files it wrote are removed)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bar (shown on a terminal only)")
-    p.set_defaults(func=_cmd_eval)
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
+    """rerun the study's experiments (or another suite) for one or more policies, with statistics,
+    figures and a report
+
+    Runs every (policy, case, seed) episode of a suite in parallel (resumable), writes
+    results.parquet/.csv, the statistics, figures and report.md/report.html to --out. Exits 1 when
+    some episodes failed (listed in errors.jsonl and the report), 2 for bad arguments, 130 when
+    interrupted (finished episodes are kept).
+    """
     specs = args.policy or ["reynolds"]
     preset = reynolds_preset(specs, args.preset)
     require("eval", *policy_extras(specs), *(["ray"] if args.backend == "ray" else []),
@@ -266,16 +269,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 
 def _select_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("select", help="rank model checkpoints by the lab-follower bars on "
-                       "the validation suite (trained cases, seeds 100-104)",
-                       description="Runs the validation suite (the scenes but the lab, 61 "
-                       "robots, a leader standing 40 s; seeds 100-104) for the reference "
-                       "policy and every candidate, scores each candidate on the bars (the "
-                       "arena at most half the reference's total, each scene below it, 61 "
-                       "robots' V_coh within 0.2 of it, parked speed <= 0.05 m/s; with wall "
-                       "contact and touching <= 1 % and no follower beyond 3 m at the end) "
-                       "and prints the ranking: most bars met, then --order. "
-                       "Writes bars.csv, ranking.csv and selection.json to --out.")
+    p = add_command(sub, "select", _cmd_select)
     p.add_argument("candidates", nargs="+", metavar="MODEL",
                    help="model .zip files (checkpoints), policy names, or training folders "
                    "(a run's --out: its checkpoints and model.zip; a --seeds output: every "
@@ -294,10 +288,19 @@ def _select_parser(sub: argparse._SubParsersAction) -> None:
                    "rerunning with the same candidates resumes there")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bar (shown on a terminal only)")
-    p.set_defaults(func=_cmd_select)
 
 
 def _cmd_select(args: argparse.Namespace) -> int:
+    """rank model checkpoints by the lab-follower bars on the validation suite (trained cases,
+    seeds 100-104)
+
+    Runs the validation suite (the scenes but the lab, 61 robots, a leader standing 40 s; seeds
+    100-104) for the reference policy and every candidate, scores each candidate on the bars (the
+    arena at most half the reference's total, each scene below it, 61 robots' V_coh within 0.2 of
+    it, parked speed <= 0.05 m/s; with wall contact and touching <= 1 % and no follower beyond 3 m
+    at the end) and prints the ranking: most bars met, then --order. Writes bars.csv, ranking.csv
+    and selection.json to --out.
+    """
     require("eval", *policy_extras([args.reference, *args.candidates]),
             purpose="boids select")
     import pandas as pd
@@ -321,12 +324,12 @@ def _cmd_select(args: argparse.Namespace) -> int:
 
 
 def _report_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("report", help="rebuild the report of a boids eval folder (no rerun)")
+    p = add_command(sub, "report", _cmd_report)
     p.add_argument("dir", help="the --out folder of boids eval")
-    p.set_defaults(func=_cmd_report)
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    """rebuild the report of a boids eval folder (no rerun)"""
     require("eval", purpose="boids report")
     from boids_env.eval.report import build_report
 
@@ -336,14 +339,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def _scenes_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("scenes", help="list the built-in scenes (walls, obstacles, maps)",
-                       description="The built-in scenes with their leader paths; any of them "
-                       "goes to boids run --scene NAME, a ROS map to --map lab.yaml.")
-    p.set_defaults(func=_cmd_scenes)
-
-
 def _cmd_scenes(args: argparse.Namespace) -> int:
+    """list the built-in scenes (walls, obstacles, maps)
+
+    The built-in scenes with their leader paths; any of them goes to boids run --scene NAME, a ROS
+    map to --map lab.yaml.
+    """
     from boids_env.config import EnvConfig
     from boids_env.world.scenes import describe
 

@@ -1,12 +1,13 @@
-"""The flags several ``boids`` commands share: the env's (``boids run``, ``boids ros sim``,
-``boids ros2 sim``), the live view's, the policy's, a simulator node's and a controller
-node's (ROS 1 and ROS 2 alike). Argument parsing only; the commands' code is imported when
-they run.
+"""How a ``boids`` command is declared (:func:`add_command`, :func:`add_command_group`) and
+the flags several commands share: the env's (``boids run``, ``boids ros sim``, ``boids ros2
+sim``), the live view's, the policy's, a simulator node's and a controller node's (ROS 1 and
+ROS 2 alike). Argument parsing only; the commands' code is imported when they run.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from boids_env.config import PATHS
@@ -32,6 +33,28 @@ POLICY_HELP = ("reynolds (default), reynolds@boids_ros or reynolds@proxemic (a p
                "learned-buildings (floor plans, by route), learned-crowd (a person through "
                "buildings among pedestrians), an SB3 "
                "model .zip, or module:object (a Policy instance, class or factory)")
+
+
+def add_command(sub: argparse._SubParsersAction, name: str,
+                handler: Callable[[argparse.Namespace], int]) -> argparse.ArgumentParser:
+    """Declares the ``boids`` (sub)command ``name`` under ``sub``, run by ``handler``
+    (``args.func``), whose docstring is its help, as click takes it: the first paragraph is
+    the command's line in the parent's ``--help`` (lower case, as argparse's help lines), the
+    rest the paragraph atop its own ``--help`` (none without one). Returns its parser, for the
+    options that are its own."""
+    summary, _, description = (handler.__doc__ or "").partition("\n\n")
+    p = sub.add_parser(name, help=" ".join(summary.split()) or None,
+                       description=" ".join(description.split()) or None)
+    p.set_defaults(func=handler)
+    return p
+
+
+def add_command_group(sub: argparse._SubParsersAction, name: str, summary: str,
+                      description: str) -> argparse._SubParsersAction:
+    """Declares ``name`` as a command of subcommands (``boids ros sim``), one of which must
+    follow it (named in ``args.<name>_command``); returns the subparsers to add them to."""
+    p = sub.add_parser(name, help=summary, description=description)
+    return p.add_subparsers(dest=f"{name}_command", required=True)
 
 
 def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:

@@ -31,6 +31,7 @@ import numpy.typing as npt
 
 from boids_env import style
 from boids_env.config import EnvConfig
+from boids_env.extras import import_extra
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -46,12 +47,8 @@ MAX_SPEED = 1000.0
 
 
 def _foxglove() -> Any:
-    try:
-        import foxglove
-    except ImportError as exc:
-        raise ImportError("the live view needs the Foxglove SDK: pip install "
-                          "'boids-env[live]'") from exc
-    return foxglove
+    return import_extra("foxglove", "the live view needs the Foxglove SDK: pip install "
+                        "'boids-env[live]'")
 
 
 SUBSCRIBE_GRACE = 0.5

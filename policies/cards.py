@@ -26,10 +26,11 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from boids_env.checks import from_fields
 from boids_env.world.leader_kinds import LEADER_KINDS
 
 if TYPE_CHECKING:
@@ -265,12 +266,7 @@ class ModelCard:
         if size > CARD_LIMIT:
             raise ValueError(f"a model card must hold at most {CARD_LIMIT:,} bytes of JSON, "
                              f"this one {size:,}")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ValueError(f"unknown model card field(s) {_short(unknown)}; known: "
-                             f"{sorted(known)}")
-        return cls(**data)
+        return from_fields(cls, data, "model card", _short)
 
     # ------------------------------------------------------------------ coverage
     def outside(self, config: EnvConfig) -> list[str]:

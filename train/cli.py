@@ -3,7 +3,8 @@ no layer imports one above it: ``run``, ``eval`` and ``report`` come from
 :mod:`boids_env.eval.cli`, ``train`` is defined here. Argument parsing only; each command's code
 is imported when it runs, so ``boids run`` works without the train extra. This module imports
 only the standard library at its top: everything else is imported inside :func:`main`, which
-answers a Ctrl-C at any moment with one line and exit status 130."""
+answers a Ctrl-C at any moment with one line and exit status 130. A command's help is its
+handler's docstring (:func:`boids_env.eval.flags.add_command`)."""
 
 from __future__ import annotations
 
@@ -21,11 +22,9 @@ from typing import Any
 
 
 def _train_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("train", help="train followers with Stable-Baselines3 (train extra)",
-                       description="Trains one shared follower policy (PPO by default) on the "
-                       "flock; writes model.zip, config.json, evaluations.csv, checkpoints/, "
-                       "tb/ (TensorBoard) and manifest.json to --out, which must be empty or "
-                       "new unless --overwrite (or a --resume of the training there).")
+    from boids_env.eval.flags import add_command
+
+    p = add_command(sub, "train", _cmd_train)
     p.add_argument("--config", help="a TOML file of TrainConfig fields, or the name of a "
                    "shipped recipe (ppo_safe, ppo_safe_stage2, ppo_study, ppo_person, "
                    "ppo_scenes, ppo_turtlebot ...); flags override it")
@@ -80,10 +79,15 @@ def _train_parser(sub: argparse._SubParsersAction) -> None:
                    "files you trust)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bar (shown on a terminal only)")
-    p.set_defaults(func=_cmd_train)
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    """train followers with Stable-Baselines3 (train extra)
+
+    Trains one shared follower policy (PPO by default) on the flock; writes model.zip, config.json,
+    evaluations.csv, checkpoints/, tb/ (TensorBoard) and manifest.json to --out, which must be
+    empty or new unless --overwrite (or a --resume of the training there).
+    """
     from boids_env.train.config import TrainConfig, resolve_recipe
 
     overrides = {name: getattr(args, name) for name in (
@@ -142,11 +146,9 @@ def _wrote(*paths: Path) -> int:
 
 
 def _curves_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("curves", help="learning curves of training runs (eval extra)",
-                       description="Plots the periodic evaluations (evaluations.csv) of one "
-                       "or more boids train output folders against follower-steps: the "
-                       "study's total and the safety figures, one line per run; writes a PNG "
-                       "and an SVG beside it.")
+    from boids_env.eval.flags import add_command
+
+    p = add_command(sub, "curves", _cmd_curves)
     p.add_argument("runs", nargs="+", help="boids train output folders (or evaluations.csv "
                    "files); label one with LABEL=PATH")
     # dest "figure": --out here names a file, which a rerun replaces (main's --out check is
@@ -157,10 +159,15 @@ def _curves_parser(sub: argparse._SubParsersAction) -> None:
                    help="a total to draw as a dashed line (e.g. Reynolds' on the default "
                    "case)")
     p.add_argument("--title", default="learning curves", help="the figure's title")
-    p.set_defaults(func=_cmd_curves)
 
 
 def _cmd_curves(args: argparse.Namespace) -> int:
+    """learning curves of training runs (eval extra)
+
+    Plots the periodic evaluations (evaluations.csv) of one or more boids train output folders
+    against follower-steps: the study's total and the safety figures, one line per run; writes a
+    PNG and an SVG beside it.
+    """
     from boids_env.extras import require
 
     require("eval", purpose="boids curves")
@@ -190,13 +197,9 @@ def _cmd_curves(args: argparse.Namespace) -> int:
 
 
 def _card_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("card", help="what a learned model was made for (its model card)",
-                       description="Shows the card a model zip carries: the robots, scenes, "
-                       "crowds, leaders, group sizes and speeds it was trained and validated "
-                       "on, its sensing and its validation figures (a zip without one: the "
-                       "card its training config describes). Without MODEL, lists the shipped "
-                       "models. --write puts a card into the zip, everything else in it kept "
-                       "byte for byte.")
+    from boids_env.eval.flags import add_command
+
+    p = add_command(sub, "card", _cmd_card)
     p.add_argument("model", nargs="?", default=None,
                    help="a shipped model's name (learned, learned-scenes, ...) or a zip")
     p.add_argument("--json", action="store_true", help="the card as JSON")
@@ -206,10 +209,16 @@ def _card_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--from", dest="source", default=None, metavar="CARD.json",
                    help="with --write: the card to write (e.g. boids card MODEL --json, edited "
                    "to add validation figures)")
-    p.set_defaults(func=_cmd_card)
 
 
 def _cmd_card(args: argparse.Namespace) -> int:
+    """what a learned model was made for (its model card)
+
+    Shows the card a model zip carries: the robots, scenes, crowds, leaders, group sizes and speeds
+    it was trained and validated on, its sensing and its validation figures (a zip without one: the
+    card its training config describes). Without MODEL, lists the shipped models. --write puts a
+    card into the zip, everything else in it kept byte for byte.
+    """
     import json
 
     from boids_env.policies.cards import CARD_LIMIT, ModelCard

@@ -7,6 +7,7 @@ from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
+from boids_env.checks import from_fields
 from boids_env.config import (
     FIELD_OWNER,
     LEADER_MAX_SPEED,
@@ -237,12 +238,7 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ValueError(f"unknown training config field(s) {unknown}; known: "
-                             f"{sorted(known)}")
-        return cls(**data)
+        return from_fields(cls, data, "training config")
 
     def replace(self, **changes: Any) -> TrainConfig:
         return replace(self, **{k: v for k, v in changes.items() if v is not None})

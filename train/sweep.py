@@ -29,6 +29,7 @@ import pandas as pd
 
 from boids_env.eval import folder
 from boids_env.eval.stats import bootstrap_ci, iqm
+from boids_env.extras import import_extra
 from boids_env.files import atomic_path, write_json, write_text
 from boids_env.train.config import TrainConfig
 
@@ -165,10 +166,7 @@ def _run_processes(jobs: Sequence[SeedJob], workers: int) -> None:
 
 
 def _run_ray(jobs: Sequence[SeedJob], workers: int) -> None:
-    try:
-        import ray
-    except ImportError as exc:
-        raise ImportError("backend='ray' needs: pip install 'boids-env[ray]'") from exc
+    ray = import_extra("ray", "backend='ray' needs: pip install 'boids-env[ray]'")
     started = not ray.is_initialized()
     if started:
         ray.init(address=os.environ.get("RAY_ADDRESS") or None, include_dashboard=False,

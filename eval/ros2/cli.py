@@ -10,6 +10,8 @@ import argparse
 from typing import Any
 
 from boids_env.eval.flags import (
+    add_command,
+    add_command_group,
     add_controller_args,
     add_live_args,
     add_sim_args,
@@ -23,13 +25,12 @@ from boids_env.eval.ros2.wire import DEFAULT_DISTRIBUTION, DEFAULT_ROUTER, DISTR
 
 def add_ros2_parser(sub: argparse._SubParsersAction) -> None:
     """Adds ``ros2`` (``sim``, ``controller``) to the ``boids`` subparsers."""
-    p = sub.add_parser("ros2", help="the study's graph as ROS 2 nodes over Zenoh (rmw_zenoh's "
-                       "conventions; no ROS install)",
-                       description="ROS 2 nodes on the study's topics (/robot_k/odom, "
-                       "/robot_k/cmd_vel) speaking rmw_zenoh's protocol: a ROS 2 system with "
-                       "RMW_IMPLEMENTATION=rmw_zenoh_cpp and its router sees and talks to them. "
-                       "Needs the ros2 extra: pip install 'boids-env[ros2]'.")
-    ros2 = p.add_subparsers(dest="ros2_command", required=True)
+    ros2 = add_command_group(
+        sub, "ros2", "the study's graph as ROS 2 nodes over Zenoh (rmw_zenoh's conventions; no "
+        "ROS install)",
+        "ROS 2 nodes on the study's topics (/robot_k/odom, /robot_k/cmd_vel) speaking "
+        "rmw_zenoh's protocol: a ROS 2 system with RMW_IMPLEMENTATION=rmw_zenoh_cpp and its "
+        "router sees and talks to them. Needs the ros2 extra: pip install 'boids-env[ros2]'.")
     _sim_parser(ros2)
     _controller_parser(ros2)
 
@@ -73,21 +74,21 @@ def _ros2_options(args: argparse.Namespace) -> Any:
 
 
 def _sim_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("sim", help="the pymunk world as a ROS 2 simulator node",
-                       description="Publishes /robot_k/odom (10 Hz), /tf and /tf_static "
-                       "(map -> robot_k/odom -> robot_k/base_footprint), /clock, /map, markers "
-                       "and the scripted leader's /robot_0/cmd_vel; applies the followers' "
-                       "/robot_k/cmd_vel. Ends with the episode (--episodes N for more), "
-                       "prints the study's metrics, writes metrics.json, trajectory.parquet "
-                       "and config.json with --out.")
+    p = add_command(sub, "sim", _cmd_sim)
     add_sim_args(p, "also hold tick 0 until NODE subscribes to the odometry, /tf and /clock; "
                  "repeatable")
     _add_transport_args(p)
     add_live_args(p)
-    p.set_defaults(func=_cmd_sim)
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
+    """the pymunk world as a ROS 2 simulator node
+
+    Publishes /robot_k/odom (10 Hz), /tf and /tf_static (map -> robot_k/odom ->
+    robot_k/base_footprint), /clock, /map, markers and the scripted leader's /robot_0/cmd_vel;
+    applies the followers' /robot_k/cmd_vel. Ends with the episode (--episodes N for more), prints
+    the study's metrics, writes metrics.json, trajectory.parquet and config.json with --out.
+    """
     from boids_env.extras import require
 
     options = sim_options(args)
@@ -101,19 +102,20 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
 
 def _controller_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("controller", help="any policy as the study's reynolds_controller, a "
-                       "ROS 2 node", description="Subscribes to every /robot_k/odom, builds "
-                       "the env's observations, publishes every follower's /robot_k/cmd_vel "
-                       "and (Reynolds) the rule-force markers on /<node>/markers. Runs until "
-                       "stopped (Ctrl-C) or --max-ticks.")
+    p = add_command(sub, "controller", _cmd_controller)
     add_controller_args(p, "boids ros2 sim's, read from /boids/env_config")
     p.add_argument("--config-wait", type=float, default=30.0,
                    help="seconds to wait for the simulator's /boids/env_config (30)")
     _add_transport_args(p)
-    p.set_defaults(func=_cmd_controller)
 
 
 def _cmd_controller(args: argparse.Namespace) -> int:
+    """any policy as the study's reynolds_controller, a ROS 2 node
+
+    Subscribes to every /robot_k/odom, builds the env's observations, publishes every follower's
+    /robot_k/cmd_vel and (Reynolds) the rule-force markers on /<node>/markers. Runs until stopped
+    (Ctrl-C) or --max-ticks.
+    """
     from boids_env.extras import require
 
     options = controller_options(args, config_wait=args.config_wait)

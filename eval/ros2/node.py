@@ -32,15 +32,12 @@ from boids_env.eval.ros2.wire import (
     parse_token,
     topic_key,
 )
+from boids_env.extras import import_extra
 
 
 def _zenoh() -> Any:
-    try:
-        import zenoh
-    except ImportError as exc:
-        raise ImportError("ROS 2 over Zenoh needs eclipse-zenoh and rosbags: pip install "
-                          "'boids-env[ros2]'") from exc
-    return zenoh
+    return import_extra("zenoh", "ROS 2 over Zenoh needs eclipse-zenoh and rosbags: pip "
+                        "install 'boids-env[ros2]'")
 
 
 class Codec:
