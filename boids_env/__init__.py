@@ -97,6 +97,7 @@ class _RegisterAfterGymnasium(importlib.abc.MetaPathFinder):
                     sys.meta_path.remove(self)
                 _register_gymnasium_ids()
 
+            # wrapping the loader's method on this one loader object is the point
             spec.loader.exec_module = exec_then_register  # type: ignore[method-assign]
         return spec
 

@@ -93,7 +93,8 @@ def darker(colour: tuple[int, int, int]) -> tuple[int, int, int]:
 def blend(colour: tuple[int, int, int], background: tuple[int, int, int], opacity: float
            ) -> tuple[int, int, int]:
     o = min(max(opacity, 0.0), 1.0)
-    return tuple(round(o * c + (1 - o) * b) for c, b in zip(colour, background, strict=True))
+    r, g, b = (round(o * c + (1 - o) * k) for c, k in zip(colour, background, strict=True))
+    return (r, g, b)
 
 
 class NoDisplayError(RuntimeError):

@@ -74,17 +74,19 @@ def load() -> ModuleType | None:
     if not _loaded:
         _loaded = True
         if os.environ.get("BOIDS_KERNELS", "") != "0":
+            module: ModuleType | None = None
             try:
                 from boids_env import _compiled
+
+                module = _compiled
             except ImportError:  # numba missing, or too old for this numpy: numpy runs
-                _compiled = None
+                pass
             except (RuntimeError, OSError) as err:  # e.g. no writable cache folder
                 warnings.warn(f"the compiled kernels could not load ({err}); the numpy "
                               f"reference runs instead (same results, slower; "
                               f"NUMBA_CACHE_DIR names a writable cache folder)",
                               RuntimeWarning, stacklevel=2)
-                _compiled = None
-            _module = _compiled
+            _module = module
     return _module if not _forced_off else None
 
 

@@ -19,7 +19,7 @@ nearest-neighbour spacing and the leader's deviation from its scripted path; see
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -475,8 +475,9 @@ def _add_person(out: dict[str, object], pos: FloatArray, velocities: FloatArray,
 
     out.update(person_metrics(pos, np.asarray(velocities, dtype=float)[:, 0], robot_radius,
                               person_radius))
-    out["contacts_leader"] = float(out["person_contacts"])  # type: ignore[arg-type]
-    out["collisions"] = int(out["contacts_follower"] + out["contacts_leader"])  # type: ignore[operator]
+    # out holds values of several types; these are counts (numbers)
+    out["contacts_leader"] = leader = float(cast(float, out["person_contacts"]))
+    out["collisions"] = int(cast(float, out["contacts_follower"]) + leader)
 
 
 def line_of_sight(positions: FloatArray, scene: Scene) -> BoolArray:

@@ -329,20 +329,24 @@ class Recorder:
                                 world.pedestrian_velocities.copy()))
         self._forces.append({k: np.array(v, dtype=float) for k, v in env.overlays.items()})
         if world.native is not None:
-            self._heading.append((world.headings, world.angular_velocities,
-                                  world.native.copy()))
+            headings, turns = world.headings, world.angular_velocities
+            # native commands are a drive with a heading's, which reports both
+            assert headings is not None and turns is not None
+            self._heading.append((headings, turns, world.native.copy()))
 
     def recording(self, env: BoidsEnv, **extra: Any) -> Recording:
         path = env.leader.reference_path()
         crowd = (np.array([c[0] for c in self._crowd]), np.array([c[1] for c in self._crowd])
                  ) if self._crowd else (None, None)
-        heading: tuple[FloatArray | None, ...] = (None, None, None)
+        angles: FloatArray | None = None
+        turns: FloatArray | None = None
+        native: FloatArray | None = None
         if self._heading:
-            heading = tuple(np.array(part) for part in zip(*self._heading, strict=True))
+            angles, turns, native = (np.array(part) for part in zip(*self._heading, strict=True))
         return Recording(env.episode_config, np.array(self._time), np.array(self._pos),
                          np.array(self._vel), np.array(self._cmd), dict(extra),
                          None if path is None else np.asarray(path, dtype=float),
-                         self._stacked_forces(), *heading, pedestrians=crowd[0],
+                         self._stacked_forces(), angles, turns, native, pedestrians=crowd[0],
                          pedestrian_velocities=crowd[1])
 
     def _stacked_forces(self) -> dict[str, FloatArray] | None:

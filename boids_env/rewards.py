@@ -12,7 +12,7 @@ the study's terms of many copies at once.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -166,7 +166,8 @@ class Rewards:
         pedestrian's (called when its weight is set)."""
         flags = proxemics.intrusion_flags(positions, pedestrians,
                                           self._metrics.intrusion_distance)
-        return self.intrusion_scale * flags[None]
+        # a float times a bool array is float64 (numpy's stubs say only "floating")
+        return cast("FloatArray", self.intrusion_scale * flags[None])
 
     def parked_term(self, positions: FloatArray, velocities: FloatArray) -> FloatArray:
         """The parked reward term (1, F): −weight · follower speed · dt once the leader's

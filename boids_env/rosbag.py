@@ -201,6 +201,7 @@ def _write_messages(writer: Any, store: Any, ros1: bool, recording: Recording,
                                            walkers, sc.person_radius)
             writer.write(people, ns, serialize(markers, MARKERS))
         if forces is not None:
+            assert recording.forces is not None
             vectors = {name: vec[step] for name, vec in recording.forces.items()}
             writer.write(forces, ns, serialize(build.force_markers(ns, step, pos[1:], vectors),
                                                MARKERS))
@@ -345,14 +346,16 @@ def _read_messages(path: Path) -> tuple[dict[int, list[tuple[float, ...]]],
         with AnyReader([path], default_typestore=store) as reader:
             for conn, stamp, raw in _bounded(reader.messages()):
                 if conn.topic == PATH_TOPIC and leader_path is None:  # ours: the first one
-                    poses = reader.deserialize(raw, conn.msgtype).poses
+                    # rosbags builds message classes at run time: its deserialize returns object
+                    path_msg: Any = reader.deserialize(raw, conn.msgtype)
+                    poses = path_msg.poses
                     leader_path = np.array([(p.pose.position.x, p.pose.position.y)
                                             for p in poses], dtype=np.float64).reshape(-1, 2)
                 match = _TOPIC.match(conn.topic)
                 if not match:
                     continue
                 k = int(match.group(1))
-                msg = reader.deserialize(raw, conn.msgtype)
+                msg: Any = reader.deserialize(raw, conn.msgtype)  # an Odometry or a Twist
                 if match.group(2) == "odom":
                     p, v = msg.pose.pose.position, msg.twist.twist.linear
                     q, w = msg.pose.pose.orientation, msg.twist.twist.angular.z

@@ -43,14 +43,16 @@ class SingleFollowerEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def step(self, action: npt.ArrayLike) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         rest = {a: o for a, o in self._obs.items() if a != self.agent}
-        actions = dict(self.others(rest)) if self.others and rest else {a: np.zeros(2)
-                                                                        for a in rest}
+        actions: dict[str, npt.ArrayLike] = (dict(self.others(rest)) if self.others and rest
+                                             else {a: np.zeros(2) for a in rest})
         actions[self.agent] = action
         self._obs, rew, term, trunc, info = self.par.step(actions)
         a = self.agent
         return self._obs[a], rew[a], term[a], trunc[a], info[a]
 
-    def render(self) -> np.ndarray | None:
+    # gymnasium's Env.render returns its own unbound TypeVar (RenderFrame), which no concrete
+    # override matches; the frame is the parallel env's (an RGB array, or None)
+    def render(self) -> np.ndarray | None:  # type: ignore[override]
         return self.par.render()
 
     def close(self) -> None:

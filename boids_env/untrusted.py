@@ -275,7 +275,7 @@ def _bounded_loader(yaml: Any) -> Any:
     """A ``SafeLoader`` whose composer counts aliases and nesting depth."""
     global _LOADER
     if _LOADER is None:
-        class BoundedLoader(yaml.SafeLoader):  # type: ignore[misc, name-defined]
+        class BoundedLoader(yaml.SafeLoader):
             def __init__(self, stream: str) -> None:
                 super().__init__(stream)
                 self.aliases = 0

@@ -87,7 +87,7 @@ def _place_ranked(i, count, cand_d, cand_j, index, distance):  # pragma: no cove
     k = index.shape[1]
     for t in range(count):
         d = cand_d[t]
-        rank = 0
+        rank = np.intp(0)  # an intp throughout, as numba types the sum anyway
         for s in range(count):
             rank += np.intp(cand_d[s] < d)
         if rank < k:

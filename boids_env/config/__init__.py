@@ -104,7 +104,9 @@ class EnvConfig:
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
         """Builds a config from flat field names; unknown names raise ``TypeError``."""
-        return _default_config(cls).replace(**kwargs)
+        # a class is hashable; mypy checks a type[...] against Hashable with its instances'
+        # __hash__ (python/mypy#20409)
+        return _default_config(cls).replace(**kwargs)  # type: ignore[arg-type]
 
     def replace(self, **kwargs: Any) -> EnvConfig:
         """Returns a copy with the named flat fields changed (validated). Choosing a

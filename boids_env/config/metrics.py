@@ -124,5 +124,6 @@ class MetricsConfig:
         """Resolved weights of the proximity, contact and wall terms (the preset's where a
         field is None)."""
         preset = SAFE_WEIGHTS if self.reward == "safe" else dict.fromkeys(SAFE_WEIGHTS, 0.0)
-        return tuple(preset[name] if getattr(self, name) is None else getattr(self, name)
-                     for name in SAFE_WEIGHTS)  # type: ignore[return-value]
+        proximity, contact, wall = (preset[name] if getattr(self, name) is None
+                                    else getattr(self, name) for name in SAFE_WEIGHTS)
+        return proximity, contact, wall

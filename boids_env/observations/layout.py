@@ -153,7 +153,7 @@ class ObservationLayout:
     def from_blocks(cls, blocks: object) -> ObservationLayout:
         """The layout of a saved block list (``[[name, size], ...]``, as :attr:`blocks`);
         ``ValueError`` for anything that is not one."""
-        try:
+        try:  # blocks is anything read from a file: what is not pairs raises here
             named = {str(name): int(size) for name, size in blocks}  # type: ignore[attr-defined]
             pairs = [(str(n), int(s)) for n, s in blocks]  # type: ignore[attr-defined]
         except (TypeError, ValueError):
@@ -310,8 +310,9 @@ class ObservationLayout:
                                                       block.shape).ravel())
             if spec.flag is not None:
                 parts["zeroed"].append(cols[:, spec.flag])
-        return tuple(np.concatenate([*parts[key], np.empty(0, np.intp)]).astype(np.intp)
-                     for key in ("scaled", "flags", "zeroed"))  # type: ignore[return-value]
+        scaled, flags, zeroed = (np.concatenate([*parts[k], np.empty(0, np.intp)]).astype(np.intp)
+                                 for k in ("scaled", "flags", "zeroed"))
+        return scaled, flags, zeroed
 
 
 def _checked(parameter: LayoutParameter, value: Any) -> int | bool:

@@ -5,7 +5,7 @@ observations (the env and the ROS controller node use it)."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -202,9 +202,10 @@ class Observer:
         cfg = self.config.observation
         if cfg.frame == "leader":
             self.follow(velocities)
-        obs = build_observations(positions, velocities, self.layout, cfg.horizon,
-                                 cfg.velocity_bound, self.reach, self.frame, self.sensors,
-                                 crowd, headings)
+        # float32, but float64 for a moment once numpy adds the noise (clipped back below)
+        obs: npt.NDArray[np.floating[Any]] = build_observations(
+            positions, velocities, self.layout, cfg.horizon,
+            cfg.velocity_bound, self.reach, self.frame, self.sensors, crowd, headings)
         if cfg.route_leader:  # the leader out of sight: as reached along its route
             self.leader_hidden = hidden = ~leader_in_sight(self._route_grid(), positions)
             rows = np.flatnonzero(hidden)
@@ -236,7 +237,7 @@ class Observer:
                 obs = np.clip(obs, self.space.low, self.space.high).astype(np.float32)
         if cfg.relative_actions:
             self._leader_velocity = obs[:, self.layout.leader_velocity].astype(np.float64)
-        return obs
+        return cast("npt.NDArray[np.float32]", obs)  # float32 again: the clip's astype
 
     def follow(self, velocities: FloatArray) -> None:
         """Turns the leader frame's heading to the leader's velocity (the first row of
@@ -249,7 +250,7 @@ class Observer:
         assert self.sensors.scene is not None
         return route_grid(self.sensors.scene, self.sensors.robot_radius, self.sensors.route_cell)
 
-    def _noise(self, obs: npt.NDArray[np.float32], std: float) -> FloatArray:
+    def _noise(self, obs: npt.NDArray[np.floating[Any]], std: float) -> FloatArray:
         """Sensing noise for ``obs``: Gaussian on every position, velocity and range, none on
         valid flags or in empty slots."""
         assert self._rng is not None

@@ -22,7 +22,7 @@ from boids_env.world import geometry as geo
 from boids_env.world.route import ROUTE_CELL, route_grid, sense_route
 from boids_env.world.scene import Scene
 
-FloatArray = npt.NDArray[np.floating]
+FloatArray = npt.NDArray[np.float64]
 
 SLOT_SIZE = 5
 """Values in a neighbour or pedestrian slot: relative position (2), velocity (2), flag (1)."""

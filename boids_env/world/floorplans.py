@@ -280,7 +280,8 @@ def _with_route(scene: Scene, seed: int, rooms: list[Room], kinds: list[str],
     start, facing = (spot[0], spot[1]), spot[2]
     visits = [k for k in order if k != home][:2]
     goals: list[tuple[float, float]] = [start, rooms[home].inward(0.6)]
-    width = scene.box[2] - scene.box[0]  # type: ignore[index]
+    assert scene.box is not None, "a floor plan is a box of rooms"  # see _attempt
+    width = scene.box[2] - scene.box[0]
     dead_end = rng.random() < 0.5
     for k, r in enumerate(visits):
         goals += [rooms[r].inward(-0.6), rooms[r].inward(0.6), *tours[r], rooms[r].inward(0.6),

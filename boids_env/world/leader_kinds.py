@@ -30,16 +30,25 @@ FloatArray = npt.NDArray[np.float64]
 
 class ScenarioConfig(Protocol):
     """The fields of :class:`boids_env.world.scenario.ScenarioConfig` a kind reads (the
-    scenario imports this module to check its ``leader``, so it is not imported here)."""
+    scenario imports this module to check its ``leader``, so it is not imported here); read
+    only, as the frozen config's fields are."""
 
-    leader: str
-    leader_trajectory: str | None
-    leader_speed: float
-    path: str
-    person_radius: float
-    crowd: int
-    start: tuple[float, float]
-    start_heading: float | None
+    @property
+    def leader(self) -> str: ...
+    @property
+    def leader_trajectory(self) -> str | None: ...
+    @property
+    def leader_speed(self) -> float: ...
+    @property
+    def path(self) -> str: ...
+    @property
+    def person_radius(self) -> float: ...
+    @property
+    def crowd(self) -> int: ...
+    @property
+    def start(self) -> tuple[float, float]: ...
+    @property
+    def start_heading(self) -> float | None: ...
 
 
 class LeaderKind:

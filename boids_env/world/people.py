@@ -24,7 +24,7 @@ simulation and replays its periods.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -73,6 +73,24 @@ MIN_ROBOT_RADIUS = 0.01
 that period."""
 PLACEMENT_TRIES = 2_000
 """Random start or goal draws tried before giving up."""
+
+
+class _Args(TypedDict):
+    """:class:`People`'s arguments as kept (and pickled) to rebuild its simulation."""
+
+    scene: Scene
+    dt: float
+    person: tuple[float, float] | None
+    goals: FloatArray
+    speed: float
+    gait_variation: float
+    goal_pause: float
+    startup_time: float
+    crowd: int
+    crowd_speed: float
+    radius: float
+    keep_clear: FloatArray
+    walk: tuple[FloatArray, FloatArray] | None
 
 
 def _require_jupedsim() -> Any:
@@ -160,7 +178,7 @@ class People:
                  gait_variation: float, goal_pause: float, startup_time: float, crowd: int,
                  crowd_speed: float, radius: float, keep_clear: FloatArray,
                  walk: tuple[FloatArray, FloatArray] | None = None) -> None:
-        self._args = dict(scene=scene, dt=dt, person=person, goals=np.asarray(goals, float),
+        self._args: _Args = dict(scene=scene, dt=dt, person=person, goals=np.asarray(goals, float),
                           speed=speed, gait_variation=gait_variation, goal_pause=goal_pause,
                           startup_time=startup_time, crowd=crowd, crowd_speed=crowd_speed,
                           radius=radius, keep_clear=np.asarray(keep_clear, float), walk=walk)
@@ -295,7 +313,7 @@ class People:
         self._retarget_crowd(agents)
         return self.positions
 
-    def _steer_person(self, t: float, a: dict[str, Any]) -> None:
+    def _steer_person(self, t: float, a: _Args) -> None:
         """Sets the person's desired speed for this period (zero before start-up, while
         pausing and once done) and moves its goal on when reached."""
         person = self._agent(0)
@@ -328,7 +346,9 @@ class People:
         agent overlapping another: the disc shrinks to the room the pedestrians leave (none, or
         a refusal: no disc this period; the person's kinematic body still pushes them
         aside)."""
-        times, points = self._args["walk"]
+        walk = self._args["walk"]
+        assert walk is not None, "_place_walker needs a walk"  # its one caller checks
+        times, points = walk
         here = np.array([np.interp(t, times, points[:, 0]), np.interp(t, times, points[:, 1])])
         t1 = t + self.dt
         there = np.array([np.interp(t1, times, points[:, 0]),

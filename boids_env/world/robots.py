@@ -45,9 +45,8 @@ the env in-process.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -55,6 +54,7 @@ import pymunk
 import pymunk.batch as batch
 
 from boids_env import kernels
+from boids_env.world.robot_protocols import World, WorldConfig
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -207,42 +207,6 @@ def wrap_angles(angles: FloatArray) -> FloatArray:
 
 
 # --------------------------------------------------------------------------------- models
-class WorldConfig(Protocol):
-    """The robot fields of :class:`boids_env.config.WorldConfig` a model reads (the config
-    imports this module, so it is not imported here)."""
-
-    robot_radius: float
-    robot_mass: float
-    drive_force: float
-    dt: float
-    substeps: int
-    drive: str
-    max_turn_rate: float | None
-    max_turn_acceleration: float | None
-    heading_gain: float | None
-    velocity_law: str
-
-
-class World(Protocol):
-    """What a model drives of :class:`boids_env.world.space.World` (which imports this
-    module): its space, robot count, velocities, batch buffers and substeps."""
-
-    space: pymunk.Space
-    n: int
-    velocities: FloatArray
-    heading_vectors: FloatArray | None
-    _write_velocities: FloatArray
-    _schedule: list[float]
-
-    def _read_buffer(self) -> batch.Buffer: ...
-
-    def _write_buffer(self) -> batch.Buffer: ...
-
-    def _people_velocities(self, w: FloatArray) -> None: ...
-
-    def _run_substeps(self, before: Callable[[Any, float], None] | None = None) -> None: ...
-
-
 class RobotModel:
     """A drive: its bodies, its driver's law and its motion over one control period.
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -235,7 +235,7 @@ def leader_in_sight(grid: RouteGrid, positions: FloatArray) -> npt.NDArray[np.bo
     inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
     free = np.where(inside, grid.free.ravel()[np.clip(row, 0, h - 1) * w
                                               + np.clip(col, 0, w - 1)], False)
-    return free.all(axis=1)
+    return cast("npt.NDArray[np.bool_]", free.all(axis=1))  # (F, S) -> (F,), not a scalar
 
 
 def sense_route(grid: RouteGrid, positions: FloatArray) -> tuple[FloatArray, FloatArray,

@@ -127,7 +127,7 @@ class SafetyConfig:
 
 def barrier_constraints(positions: FloatArray, velocities: FloatArray,
                         leader_velocity: FloatArray, radius: float, config: SafetyConfig,
-                        surfaces: FloatArray, surface_valid: FloatArray,
+                        surfaces: FloatArray, surface_valid: npt.NDArray[np.bool_],
                         leader_row: bool = True,
                         ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
     """The half-planes a·v ≤ b of every follower's command.

@@ -84,6 +84,12 @@ class Scene:
     defaults: dict[str, Any] = field(default_factory=dict)
     """Scenario fields this scene sets unless the user gives them (its leader path, start)."""
     _cache: dict[Any, Any] = field(default_factory=dict, repr=False, compare=False)
+    # Every query shape as a capsule (the capsules, then each polygon's edges with radius 0)
+    # and the shape each one belongs to (into names): set by __post_init__, never passed in.
+    _qa: FloatArray = field(init=False, repr=False, compare=False)
+    _qb: FloatArray = field(init=False, repr=False, compare=False)
+    _qr: FloatArray = field(init=False, repr=False, compare=False)
+    _owner: npt.NDArray[np.intp] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         a, b = np.asarray(self.a, float).reshape(-1, 2), np.asarray(self.b, float).reshape(-1, 2)
@@ -215,8 +221,9 @@ class Scene:
     # ---------------------------------------------------------------- box (exact)
     def _box_gaps(self, points: FloatArray) -> FloatArray:
         """Distances (P, 4) from each point to the box's walls (east, north, west, south),
-        computed as the study's arena code did."""
-        x0, y0, x1, y1 = self.box  # type: ignore[misc]
+        computed as the study's arena code did (callers check that there is a box)."""
+        assert self.box is not None, "_box_gaps needs a box"
+        x0, y0, x1, y1 = self.box
         return np.concatenate([np.array([x1, y1]) - points, points - np.array([x0, y0])],
                               axis=1)
 
@@ -229,7 +236,8 @@ class Scene:
         return self._cache["box array"]
 
     def _box_within(self, points: FloatArray, margins: tuple[float, ...]) -> BoolArray:
-        x0, y0, x1, y1 = self.box  # type: ignore[misc]
+        assert self.box is not None, "_box_within needs a box"  # its one caller checks
+        x0, y0, x1, y1 = self.box
         hi = np.array([x1, y1], dtype=float)
         lo = -np.array([x0, y0], dtype=float)
         for m in margins:  # subtracted one by one, as the arena code did (h - r - tol)

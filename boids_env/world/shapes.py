@@ -72,9 +72,10 @@ def shapes_scene(data: dict[str, Any], name: str) -> Scene:
     unknown = sorted(set(data) - TOP_KEYS)
     if unknown:
         raise ValueError(f"scene {name}: unknown key(s) {unknown}; allowed: {sorted(TOP_KEYS)}")
-    box = None
+    box: tuple[float, float, float, float] | None = None
     if "box" in data:
-        box = tuple(_numbers(name, "box", data["box"], 4))
+        x0, y0, x1, y1 = _numbers(name, "box", data["box"], 4)
+        box = (x0, y0, x1, y1)
         if not (box[0] < box[2] and box[1] < box[3]):
             raise ValueError(f"scene {name}: box must be [xmin, ymin, xmax, ymax] with min < "
                              f"max, got {list(box)}")
@@ -114,7 +115,7 @@ def shapes_scene(data: dict[str, Any], name: str) -> Scene:
                          f"{excerpt(description)}")
     description = printable(description, 400)
     scene_name = safe_name(data.get("name", name), f"scene {name}: name", limit=300)
-    return Scene(scene_name, description, box=box,  # type: ignore[arg-type]
+    return Scene(scene_name, description, box=box,
                  a=np.array(a).reshape(-1, 2), b=np.array(b).reshape(-1, 2), radius=np.array(r),
                  polygons=tuple(polygons), names=tuple(names), defaults=defaults)
 

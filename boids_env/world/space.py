@@ -153,7 +153,7 @@ class World:
                              f"(drive={config.drive!r} steers within a control period); use "
                              f"robot='sphero' (or another holonomic robot) with people")
         drive = math.inf if leader_kinematic else PERSON_DRIVE
-        leader = (PERSON_MASS, leader_radius, drive) if person else None
+        leader = (PERSON_MASS, leader_radius, drive) if leader_radius is not None else None
         self._robots, self._controls = self.model.add_bodies(self.space, start, leader)
         self.pedestrian_radius = pedestrian_radius
         walkers = [self._add_disc(q, PERSON_MASS, pedestrian_radius) for q in crowd]
