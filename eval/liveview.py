@@ -21,6 +21,7 @@ previous one (never going back across resets), paced at ``speed`` × real time.
 from __future__ import annotations
 
 import math
+import os
 import socket
 import threading
 import time
@@ -72,7 +73,8 @@ def check_port(port: int, host: str = "127.0.0.1") -> None:
         with socket.create_server((host, port)):
             pass
     except OSError as exc:
-        raise _taken(port, host, exc.strerror or str(exc)) from None
+        why = os.strerror(exc.errno) if exc.errno else str(exc)
+        raise _taken(port, host, why) from None
 
 
 SUBSCRIBE_GRACE = 0.5
