@@ -210,6 +210,12 @@ def live_options(args: argparse.Namespace) -> dict[str, Any] | None:
             raise ValueError(f"{', '.join(given)} set the live view: add --live foxglove")
         return None
     require("live", purpose="--live foxglove")
+    if not 0 <= args.live_port <= 65535:
+        raise ValueError(f"--live-port must be in [0, 65535] (0: any free port), got "
+                         f"{args.live_port}")
+    from boids_env.eval.liveview import check_port
+
+    check_port(args.live_port)  # a taken port: refused before the run, not at its start
     return {"port": args.live_port, "speed": args.live_speed, "wait": args.live_wait}
 
 

@@ -21,6 +21,8 @@ previous one (never going back across resets), paced at ``speed`` × real time.
 from __future__ import annotations
 
 import math
+import os
+import socket
 import threading
 import time
 from collections import deque
@@ -49,6 +51,27 @@ MAX_SPEED = 1000.0
 def _foxglove() -> Any:
     return import_extra("foxglove", "the live view needs the Foxglove SDK: pip install "
                         "'boids-env[live]'")
+
+
+def _taken(port: int, host: str, why: str) -> ValueError:
+    return ValueError(f"the live view's port {port} on {host} is taken ({why}): another live "
+                      f"view or a Foxglove bridge runs there? Choose another with --live-port "
+                      f"PORT (port= in Python), or --live-port 0 for any free one")
+
+
+def check_port(port: int, host: str = "127.0.0.1") -> None:
+    """Refuses a port the live view could not listen on (``ValueError`` naming it and how to
+    choose another), so that ``--live foxglove`` is refused before the run starts rather
+    than ending it with the server's error. Port 0 (any free one) always passes."""
+    if port == 0:
+        return
+    try:
+        # as the server binds (SO_REUSEADDR: a port left in TIME_WAIT is free to it)
+        with socket.create_server((host, port)):
+            pass
+    except OSError as exc:
+        why = os.strerror(exc.errno) if exc.errno else str(exc)
+        raise _taken(port, host, why) from None
 
 
 SUBSCRIBE_GRACE = 0.5
@@ -94,9 +117,14 @@ class FoxgloveView:
 
         self._listener = Listener()
         self.context = foxglove.Context()
-        self.server = foxglove.start_server(name=name, host=host, port=port,
-                                            server_listener=self._listener,
-                                            context=self.context)
+        try:
+            self.server = foxglove.start_server(name=name, host=host, port=port,
+                                                server_listener=self._listener,
+                                                context=self.context)
+        except RuntimeError as exc:  # the SDK's FoxgloveError: taken since check_port
+            if "bind" not in str(exc).lower():
+                raise
+            raise _taken(port, host, str(exc)) from None
         self.port = int(self.server.port)
         self.scene = SceneUpdateChannel("/scene", context=self.context)
         self.tf = FrameTransformsChannel("/tf", context=self.context)

@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from boids_env.environment import BoidsEnv
+from boids_env.eval.graph.malformed import Counts, since
 from boids_env.eval.graph.protocol import (
     CLOCK_START,
     CMD_TIMEOUT,
@@ -107,7 +108,9 @@ class SimEpisode:
     """Diagnostics (real time): ticks the simulator itself was late for (``late_ticks``),
     follower-ticks that got the zero command of the timeout (``timed_out``) or a command that
     did not answer the tick just published (``stale``); commands beyond one per follower and
-    tick (``extra_commands``) or not finite (``rejected_commands``); the controllers seen."""
+    tick (``extra_commands``) or not finite (``rejected_commands``); samples dropped as
+    malformed since the previous episode, by topic and reason (``malformed``, see
+    :mod:`boids_env.eval.graph.malformed`); the controllers seen."""
 
 
 @dataclass(frozen=True)
@@ -170,6 +173,10 @@ class SimTransport(Protocol):
     def publish(self, frame: SimFrame) -> None:
         """Publishes one tick."""
 
+    @property
+    def malformed(self) -> Counts:
+        """The samples the node dropped so far as malformed, by topic and reason."""
+
 
 class SimCore:
     """The simulator: builds the env (config errors raise before any transport starts) and
@@ -215,6 +222,8 @@ class SimCore:
         obs = config.observation
         self._sensors = Observer(config).sensors if obs.lidar_rays > 0 else None
         self.ready = False
+        self._malformed: Counts = {}
+        """The transport's malformed counts at the end of the last episode."""
 
     # ---------------------------------------------------------------------------- graph
     def controllers(self, transport: SimTransport) -> list[str]:
@@ -394,8 +403,11 @@ class SimCore:
             time.sleep(min(DRAIN, self.dt))
         self.next_start_ns = stamp_ns(start, tick, self.dt) + period_ns(EPISODE_GAP)
         controllers = self.controllers(transport)
+        malformed = transport.malformed
         stats.update(extra_commands=self.board.extra - extra0,
-                     rejected_commands=self.board.rejected - rejected0, controllers=controllers)
+                     rejected_commands=self.board.rejected - rejected0,
+                     malformed=since(malformed, self._malformed), controllers=controllers)
+        self._malformed = malformed
         recording = recorder.recording(self.env, seed=seed)
         # the graph's config (a robot with a heading steps with its cmd_vel's (v, ω) inside)
         recording.config = self.config

@@ -35,6 +35,7 @@ from boids_env.eval.graph.controller import (
     base_config,
     controller_policy,
 )
+from boids_env.eval.graph.malformed import MalformedInput
 from boids_env.eval.graph.protocol import (
     CONFIG_PARAM,
     EPISODE_PARAM,
@@ -52,6 +53,7 @@ from boids_env.eval.ros.rospy_path import import_rospy
 __all__ = ["SYNC_MODES", "ControllerNode", "ControllerOptions", "controller_policy",
            "run_controller"]
 
+ODOMETRY = "nav_msgs/Odometry"
 FIRST_CONNECTION_WAIT = 1.0
 """Seconds a command publisher may wait, once, for the odometry source's node to connect to
 it before its first message (a message published before a subscriber connects is lost, and a
@@ -108,14 +110,15 @@ class ControllerNode:
                       + f" (rosparam delete {self.name} to start from the preset)", flush=True)
         self._source: str | None = None
         self._deaf: set[str] = set()
-        self.odom_subs = [rospy.Subscriber(odom_topic(k), Odometry, self._on_odom,
-                                           callback_args=k, queue_size=QUEUE_SIZE,
-                                           tcp_nodelay=True) for k in range(self.robots)]
-        # the crowd's pedestrians: the assembler's sources after the robots
-        self.odom_subs += [rospy.Subscriber(pedestrian_topic(k), Odometry, self._on_odom,
-                                            callback_args=self.robots + k,
-                                            queue_size=QUEUE_SIZE, tcp_nodelay=True)
-                           for k in range(core.pedestrians)]
+        self.dropped = MalformedInput(self.name, rospy.logwarn)
+        """Odometry whose handling raised (rospy decodes the wire itself and drops what it
+        cannot read): counted by topic and reason, the first of each logged."""
+        # the robots, then the crowd's pedestrians: the assembler's sources in that order
+        topics = [*(odom_topic(k) for k in range(self.robots)),
+                  *(pedestrian_topic(k) for k in range(core.pedestrians))]
+        self.odom_subs = [rospy.Subscriber(topic, Odometry, self._guarded(topic, source),
+                                           queue_size=QUEUE_SIZE, tcp_nodelay=True)
+                          for source, topic in enumerate(topics)]
 
     # ---------------------------------------------------------------------------- config
     def _base_config(self) -> EnvConfig:
@@ -148,6 +151,17 @@ class ControllerNode:
                 self._pending_params = None
 
     # ------------------------------------------------------------------------- odometry
+    def _guarded(self, topic: str, source: int) -> Any:
+        """:meth:`_on_odom` of ``source`` under :meth:`MalformedInput.guard`: what it raises
+        on a message is counted and logged once, not a traceback per message from rospy."""
+        return lambda msg: self.dropped.guard(topic, ODOMETRY, lambda m: self._on_odom(
+            m, source), msg)
+
+    @property
+    def malformed(self) -> dict[str, dict[str, int]]:
+        """The odometry dropped as malformed so far, by topic and reason."""
+        return self.dropped.counts
+
     def _on_odom(self, msg: Any, robot: int) -> None:
         if self._source is None:
             self._source = msg._connection_header.get("callerid")
@@ -215,6 +229,9 @@ class ControllerNode:
     def shutdown(self) -> None:
         """Leaves the graph; its Reynolds parameters leave the parameter server with it, so
         the next run starts from its preset and arguments again."""
+        summary = self.dropped.summary()
+        if summary is not None:
+            print(summary, flush=True)
         names = ["policy", *(reconfigure.TUNABLE if self.server is not None else ())]
         for name in names:
             try:

@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from boids_env.eval.graph.malformed import MalformedInput
 from boids_env.eval.graph.messages import crowd_odometry, robot_odometry, transforms
 from boids_env.eval.graph.protocol import (
     CLOCK_START,
@@ -51,6 +52,7 @@ from boids_env.eval.ros.rospy_path import import_rospy
 
 __all__ = ["SimEpisode", "SimNode", "SimOptions", "run_sim", "write_outputs"]
 
+TWIST = "geometry_msgs/Twist"
 POLL = 0.05
 """Seconds between checks of the graph while waiting for nodes to connect (each asks the
 master and the nodes over XML-RPC)."""
@@ -82,6 +84,9 @@ class SimNode:
         rospy.init_node(options.node_name, argv=list(argv) if argv is not None else None,
                         disable_signals=True)
         self.name = rospy.get_name()
+        self.dropped = MalformedInput(self.name, rospy.logwarn)
+        """Commands whose handling raised (rospy decodes the wire itself and drops what it
+        cannot read): counted by topic and reason, the first of each logged."""
         # This node is the clock (as Stage is): the nodes started after it run on sim time.
         rospy.set_param("/use_sim_time", True)
         rospy.set_param(CONFIG_PARAM, config_json(config.to_dict()))
@@ -102,14 +107,14 @@ class SimNode:
                                 for k in range(core.pedestrians)]
         self.leader_pub = None
         if self.external:
-            self.leader_sub = rospy.Subscriber(cmd_topic(0), Twist, self._on_leader,
-                                               queue_size=QUEUE_SIZE, tcp_nodelay=True)
+            self.leader_sub = rospy.Subscriber(cmd_topic(0), Twist, self._guarded(
+                cmd_topic(0), self._on_leader), queue_size=QUEUE_SIZE, tcp_nodelay=True)
         elif not core.person:  # a walking person takes no cmd_vel
             self.leader_pub = publisher(rospy, cmd_topic(0), Twist)
-        self.cmd_subs = [rospy.Subscriber(cmd_topic(k), Twist, self._on_command,
-                                          callback_args=k - 1, queue_size=QUEUE_SIZE,
-                                          tcp_nodelay=True)
-                         for k in range(1, self.robots)]
+        self.cmd_subs = [rospy.Subscriber(
+            cmd_topic(k), Twist, self._guarded(
+                cmd_topic(k), lambda msg, index=k - 1: self._on_command(msg, index)),
+            queue_size=QUEUE_SIZE, tcp_nodelay=True) for k in range(1, self.robots)]
         self._subscriptions = {cmd_topic(k): sub for k, sub in enumerate(self.cmd_subs, 1)}
         self._publishers = {pub.resolved_name: pub for pub in (
             self.clock_pub, self.tf_pub, *self.odom_pubs, *self.pedestrian_pubs,
@@ -124,6 +129,16 @@ class SimNode:
                                 "/clock", "/tf"]
 
     # ------------------------------------------------------------------------ callbacks
+    def _guarded(self, topic: str, callback: Any) -> Any:
+        """``callback`` under :meth:`MalformedInput.guard`: what it raises on a message is
+        counted and logged once, not a traceback per message from rospy."""
+        return lambda msg: self.dropped.guard(topic, TWIST, callback, msg)
+
+    @property
+    def malformed(self) -> dict[str, dict[str, int]]:
+        """The commands dropped as malformed so far, by topic and reason."""
+        return self.dropped.counts
+
     def _on_command(self, msg: Any, index: int) -> None:
         if not self.core.post_command(index, msg.linear.x, msg.linear.y, msg.angular.z):
             self.rospy.logwarn_throttle(5.0, f"{self.name}: dropped a non-finite command for "
@@ -222,6 +237,9 @@ class SimNode:
                 self.rospy.delete_param(name)
             except (KeyError, OSError):
                 pass
+        summary = self.dropped.summary()
+        if summary is not None:
+            print(summary, flush=True)
         self.rospy.signal_shutdown("boids ros sim finished")
 
 

@@ -84,10 +84,7 @@ class Ros2Controller:
             self._config_text = msg.data
 
     def _on_episode(self, msg: Any) -> None:
-        try:
-            info = EpisodeInfo.from_json(msg.data)
-        except ValueError:
-            return
+        info = EpisodeInfo.from_json(msg.data)  # a ValueError drops it, counted as malformed
         with self._lock:
             self._episode = info
             self._lock.notify_all()
@@ -150,6 +147,10 @@ class Ros2Controller:
         return self.core.spin(self)
 
     def close(self) -> None:
+        """Prints the malformed samples dropped (if any) and leaves the graph."""
+        summary = self.node.dropped.summary()
+        if summary is not None:
+            print(summary, flush=True)
         self.node.close()
 
 

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from boids_env.eval.graph.malformed import UNDECODABLE, Counts, MalformedInput
 from boids_env.eval.ros2.wire import (
     DEFAULT_ROUTER,
     RELIABLE_VOLATILE,
@@ -28,8 +29,8 @@ from boids_env.eval.ros2.wire import (
     check_topic,
     gid,
     node_token,
-    parse_attachment,
     parse_token,
+    sample_fault,
     topic_key,
 )
 from boids_env.extras import import_extra
@@ -149,6 +150,8 @@ class Node:
         self._graph: dict[str, Token] = {}
         self._graph_lock = threading.Lock()
         self.node = node_token(domain, self.zid, self._new_id(), name, namespace)
+        self.dropped = MalformedInput(self.node.fqn)
+        """The malformed samples of this node's subscriptions (:attr:`malformed`)."""
         self._tokens.append(self.session.liveliness().declare_token(self.node.key()))
         self._graph_sub = self.session.liveliness().declare_subscriber(
             f"@ros2_lv/{domain}/**", self._on_token, history=True)
@@ -199,21 +202,17 @@ class Node:
 
     def subscribe(self, topic: str, msgtype: str, callback: Callable[[Any], None],
                   qos: Qos = RELIABLE_VOLATILE) -> Token:
-        """Calls ``callback(message)`` for every message of ``topic`` (decoded; samples
-        without rmw_zenoh's attachment are dropped, as rmw_zenoh drops them). The Zenoh
-        subscriber is declared before the token, so a node that sees the token reaches it."""
-        codec = self.codec
-        key = topic_key(self.domain, topic, msgtype, codec.type_hash(msgtype))
-
-        def on_sample(sample: Any) -> None:
-            if sample.attachment is None:
-                return
-            try:
-                parse_attachment(sample.attachment.to_bytes())
-            except ValueError:
-                return
-            callback(codec.decode(sample.payload.to_bytes(), msgtype))
-
+        """Calls ``callback(message)`` for every message of ``topic`` (decoded). A sample
+        that cannot be read (no rmw_zenoh attachment, an empty or undecodable payload,
+        another type or type hash on the topic) or that ``callback`` refuses with a
+        ``ValueError`` is dropped and counted in :attr:`malformed`, the first of each topic
+        and reason logged (:class:`~boids_env.eval.graph.malformed.MalformedInput`). The
+        Zenoh subscriber is declared before the token, so a node that sees the token reaches
+        it."""
+        on_sample = self._reader(topic, msgtype, callback)
+        # any type and hash of the topic (the last two chunks): another distribution's node,
+        # or a wrong type, is told once rather than silently never heard
+        key = f"{self.domain}/{topic.strip('/')}/*/*"
         if qos.durability == TRANSIENT_LOCAL:
             import zenoh.ext as zext
 
@@ -224,6 +223,37 @@ class Node:
             sub = self.session.declare_subscriber(key, on_sample)
         self._subscribers.append(sub)
         return self.declare_endpoint("MS", topic, msgtype, qos)
+
+    def _reader(self, topic: str, msgtype: str, callback: Callable[[Any], None]
+                ) -> Callable[[Any], None]:
+        """The Zenoh callback of a subscription: every sample read under one guard."""
+        codec, dropped = self.codec, self.dropped
+        expected = topic_key(self.domain, topic, msgtype, codec.type_hash(msgtype))
+
+        def on_sample(sample: Any) -> None:
+            payload = b""
+            try:
+                attached = None if sample.attachment is None else sample.attachment.to_bytes()
+                payload = sample.payload.to_bytes()
+                fault = sample_fault(str(sample.key_expr), expected, attached, payload,
+                                     codec.distribution)
+                if fault is not None:
+                    dropped.drop(topic, msgtype, *fault)
+                    return
+                msg = codec.decode(payload, msgtype)
+            except Exception as exc:  # rosbags raises several kinds on a bad buffer
+                dropped.drop(topic, msgtype, UNDECODABLE,
+                             f"{len(payload)} bytes that are not its CDR (cut short, or "
+                             f"another message): {exc}")
+                return
+            dropped.guard(topic, msgtype, callback, msg)
+
+        return on_sample
+
+    @property
+    def malformed(self) -> Counts:
+        """The samples dropped so far, by topic and reason (see :meth:`subscribe`)."""
+        return self.dropped.counts
 
     def close(self) -> None:
         """Leaves the graph (its tokens vanish) and closes the session."""

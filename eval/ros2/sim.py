@@ -168,6 +168,11 @@ class Ros2Sim:
         if not self.core.post_leader_command(t.linear.x, t.linear.y):
             print(f"{self.name}: dropped a non-finite command for the leader", flush=True)
 
+    @property
+    def malformed(self) -> dict[str, dict[str, int]]:
+        """The samples dropped as malformed so far, by topic and reason (the node's)."""
+        return self.node.malformed
+
     # ---------------------------------------------------------------------------- graph
     def publishers(self, topic: str) -> set[str]:
         """The nodes whose liveliness tokens show a publisher on ``topic``."""
@@ -237,8 +242,13 @@ class Ros2Sim:
         return 2 * np.arctan2(frame.quaternions[:, 0], frame.quaternions[:, 1])
 
     def close(self) -> None:
+        """Stops the live view, prints the malformed samples dropped (if any), leaves the
+        graph."""
         if self.view is not None:
             self.view.close()
+        summary = self.node.dropped.summary()
+        if summary is not None:
+            print(summary, flush=True)
         self.node.close()
 
 

@@ -252,3 +252,47 @@ def parse_attachment(data: bytes) -> tuple[int, int, bytes]:
                          f"{GID_SIZE}, got {len(data)} bytes")
     sequence, stamp = struct.unpack_from("<qq", data)
     return sequence, stamp, data[17:]
+
+
+def sample_fault(key: str, expected: str, attachment_bytes: bytes | None, payload: bytes,
+                 distribution: str) -> tuple[str, str] | None:
+    """What is wrong with a sample received by a topic's subscription, before its payload is
+    decoded: ``(reason, detail)`` (reasons of :mod:`boids_env.eval.graph.malformed`), or None.
+
+    Args:
+        key: the sample's key expression (the subscription takes any type and hash of the
+            topic, so that those of other nodes are told, not silently missed).
+        expected: the topic's key expression with our type and hash (:func:`topic_key`).
+        attachment_bytes: the sample's attachment (None: it has none).
+        payload: the sample's payload.
+        distribution: whose type hashes are ours, for the message.
+    """
+    from boids_env.eval.graph.malformed import (
+        BAD_ATTACHMENT,
+        EMPTY,
+        NO_ATTACHMENT,
+        WRONG_HASH,
+        WRONG_TYPE,
+    )
+
+    if key != expected:
+        *_, dds, their_hash = key.split("/")
+        *_, our_dds, our_hash = expected.split("/")
+        if dds != our_dds:
+            try:
+                name = ros_type(dds)
+            except ValueError:
+                name = repr(dds)
+            return WRONG_TYPE, f"a sample of {name} was put on it"
+        return WRONG_HASH, (f"{their_hash} is not {distribution}'s {our_hash}: a node of "
+                            f"another ROS 2 distribution? (ours is chosen with "
+                            f"--distribution)")
+    if attachment_bytes is None:
+        return NO_ATTACHMENT, "rmw_zenoh puts its attachment on every sample"
+    try:
+        parse_attachment(attachment_bytes)
+    except ValueError as exc:
+        return BAD_ATTACHMENT, str(exc)
+    if not payload:
+        return EMPTY, "0 bytes"
+    return None

@@ -144,3 +144,49 @@ def test_live_flags_without_live_and_bad_values_are_refused_before_anything_runs
         FoxgloveView(EnvConfig(), port=0, speed=-1.0)
     with pytest.raises(ValueError, match="port must be"):
         FoxgloveView(EnvConfig(), port=70000)
+
+
+@pytest.mark.parametrize("command", [["run"], ["ros2", "sim", "--no-wait", "--listen",
+                                               "tcp/127.0.0.1:0", "--connect",
+                                               "tcp/127.0.0.1:9"]])
+def test_a_taken_live_port_is_refused_by_name_before_anything_runs(command, tmp_path):
+    """Issue 55: a port already in use ends the command with exit status 2 and one line
+    naming the port and how to choose another, before any output or network; no
+    traceback."""
+    import subprocess
+    import sys
+
+    _require("foxglove")
+    if command[0] == "ros2":
+        _require("zenoh")
+    out = tmp_path / "out"
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        done = subprocess.run(
+            [sys.executable, "-m", "boids_env.train.cli", *command, "--max-cycles", "5",
+             "--live", "foxglove", "--live-port", str(port), "--out", str(out)],
+            capture_output=True, text=True, timeout=120,
+            env={**os.environ, "SDL_VIDEODRIVER": "dummy"})
+    assert done.returncode == 2, done.stderr[-3000:]
+    assert "Traceback" not in done.stderr, done.stderr[-3000:]
+    assert f"port {port}" in done.stderr and "--live-port" in done.stderr, done.stderr
+    assert "--live-port 0" in done.stderr  # any free port
+    assert not out.exists()  # refused before any side effect
+    assert done.stdout == ""
+
+
+def test_the_view_itself_refuses_a_taken_port_with_a_value_error():
+    """The same refusal from :class:`FoxgloveView` (the library's users, and a port taken
+    between the command's check and the server's start)."""
+    _require("foxglove")
+    from boids_env.config import EnvConfig
+    from boids_env.eval.liveview import FoxgloveView
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with pytest.raises(ValueError, match=f"port {port} .*--live-port"):
+            FoxgloveView(EnvConfig(), port=port)
