@@ -211,6 +211,10 @@ class _Loopback:
     poll = 0.0
     wait_for_topics = ()
 
+    @property
+    def malformed(self):
+        return {}  # in one process nothing arrives malformed
+
     def __init__(self, core, controller_core):
         from boids_env.eval.graph.protocol import TickAssembler
 
