@@ -26,8 +26,8 @@ from boids_env.world.space import World
 
 if TYPE_CHECKING:
     from boids_env.config import EnvConfig
-    from boids_env.world.leader import Leader
     from boids_env.world.crowd_replay import ReplayedCrowd
+    from boids_env.world.leader import Leader
     from boids_env.world.people import People
     from boids_env.world.scene import Scene
 

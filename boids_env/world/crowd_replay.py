@@ -93,7 +93,8 @@ class ReplayedCrowd:
         self.dt = float(dt)
         self.radius = scenario.person_radius
         self.count = len(keep)
-        inside = np.flatnonzero(scene.within(self.points, 0.0)) if len(self.points) else []
+        inside = (np.flatnonzero(scene.within(self.points, 0.0)) if len(self.points)
+                  else np.zeros(0, dtype=np.int64))
         if len(inside):
             k = int(np.searchsorted(self.start, inside[0], side="right") - 1)
             x, y = self.points[inside[0]]
