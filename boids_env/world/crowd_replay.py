@@ -35,8 +35,11 @@ FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
 OFF_STAGE = (1.0e5, 1.0e5)
-"""Where a pedestrian not in the recording at the time waits (m): far beyond every sensor and
-scene (coordinates are bounded by ±1000 m)."""
+"""Where the first pedestrian not in the recording at the time waits (m): far beyond every
+sensor and scene (coordinates are bounded by ±1000 m); pedestrian k waits
+``k`` × :data:`OFF_STAGE_SPACING` farther in x, clear of the others."""
+OFF_STAGE_SPACING = 2.0
+"""Spacing (m) of the pedestrians waiting off stage (more than two bodies: they never touch)."""
 CATCH_UP = 0.05
 """A replayed pedestrian held back (by a robot against a wall) catches up at most this much
 (m/s) faster than its fastest recorded speed."""
@@ -135,9 +138,11 @@ class ReplayedCrowd:
 
     def positions(self, t: float) -> FloatArray:
         """(P, 2) each pedestrian's recorded position at ``t`` (s), linearly interpolated
-        between its samples; :data:`OFF_STAGE` when it is not in the recording then."""
+        between its samples; off stage (:data:`OFF_STAGE`) when it is not in the recording
+        then."""
         out = np.empty((self.count, 2))
         out[:] = OFF_STAGE
+        out[:, 0] += OFF_STAGE_SPACING * np.arange(self.count)
         if not self.count:
             return out
         clipped = np.clip(t, self.first, self.last)
@@ -157,7 +162,7 @@ class ReplayedCrowd:
     def places(self, t: float) -> tuple[npt.NDArray[np.int64], FloatArray]:
         """The pedestrians that come on or go off stage in the period from ``t`` (s) and
         where the world puts them before the period's physics: their positions at its end
-        (:data:`OFF_STAGE` for those leaving)."""
+        (off stage for those leaving)."""
         now, then = self.present(t), self.present(t + self.dt)
         changed = np.flatnonzero(now != then)
         return changed, self.positions(t + self.dt)[changed]

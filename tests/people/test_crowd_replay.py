@@ -12,7 +12,7 @@ from boids_env.eval.episode import run_episode
 from boids_env.policies import ReynoldsPolicy
 from boids_env.world import crowd_files
 from boids_env.world.crowd_files import read_crowd
-from boids_env.world.crowd_replay import OFF_STAGE
+from boids_env.world.crowd_replay import OFF_STAGE, OFF_STAGE_SPACING
 
 # pedestrian 1: frames 0, 10, 20 (t = 0, 0.4, 0.8 s); pedestrian 2: frames 10, 20, 30
 ETH = """# frame ped x y
@@ -70,14 +70,15 @@ def run_positions(path, steps, **fields):
 
 @pytest.mark.parametrize(("text", "name"), [(ETH, "eth.txt"), (TRAJNET, "crowd.ndjson")])
 def test_pedestrians_walk_their_tracks_interpolated_to_dt(tmp_path, text, name):
-    _, seen = run_positions(write(tmp_path, text, name), 13)
-    off = list(OFF_STAGE)
+    _, seen = run_positions(write(tmp_path, text, name), 16)
+    off1, off2 = list(OFF_STAGE), [OFF_STAGE[0] + OFF_STAGE_SPACING, OFF_STAGE[1]]
     # by hand, the crowd's origin at (2, 1), dt = 0.1 s
-    want = {0: [[2.0, 1.0], off], 2: [[2.2, 1.0], off],
+    want = {0: [[2.0, 1.0], off2], 2: [[2.2, 1.0], off2],
             4: [[2.4, 1.0], [3.0, 2.0]],  # pedestrian 2 comes on stage at 0.4 s
             6: [[2.6, 1.1], [3.0, 2.2]],  # halfway from (0.4, 0) to (0.8, 0.2)
             8: [[2.8, 1.2], [3.0, 2.4]],  # pedestrian 1's last sample
-            9: [off, [3.0, 2.5]], 12: [off, [3.0, 2.8]], 13: [off, off]}
+            9: [off1, [3.0, 2.5]], 12: [off1, [3.0, 2.8]], 13: [off1, off2],
+            16: [off1, off2]}  # waiting off stage, apart: still
     for step, expected in want.items():
         assert np.allclose(seen[step], expected, atol=1e-6), (step, seen[step].tolist())
 
