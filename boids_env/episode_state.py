@@ -26,17 +26,18 @@ from boids_env.world.space import World
 
 if TYPE_CHECKING:
     from boids_env.config import EnvConfig
+    from boids_env.world.crowd_replay import ReplayedCrowd
     from boids_env.world.leader import Leader
     from boids_env.world.people import People
     from boids_env.world.scene import Scene
 
 FloatArray = npt.NDArray[np.float64]
 
-RESET_OPTIONS = (*(f.name for f in fields(ScenarioConfig) if f.name not in ("robots", "crowd")),
-                 "obs_noise")
+RESET_OPTIONS = (*(f.name for f in fields(ScenarioConfig)
+                   if f.name not in ("robots", "crowd", "crowd_file")), "obs_noise")
 """Fields that ``reset(options=...)`` may change for one episode: the scenario's (not
-``robots``, which fixes the agents, nor ``crowd``, which fixes the observations' pedestrian
-slots) and the sensing noise."""
+``robots``, which fixes the agents, nor ``crowd`` and ``crowd_file``, which fix the
+observations' pedestrian slots) and the sensing noise."""
 
 
 def episode_config(config: EnvConfig, options: Mapping[str, Any] | None) -> EnvConfig:
@@ -70,8 +71,8 @@ class Episode:
     """The episode's config (the env's ``episode_config``)."""
     leader: Leader
     """The leader (robot 0's path, a person, an external command)."""
-    people: People | None
-    """The pedestrian simulation (a walking person, a crowd), or None."""
+    people: People | ReplayedCrowd | None
+    """The pedestrian simulation (a walking person, a crowd) or a replayed crowd, or None."""
     scene: Scene
     """The episode's static geometry."""
     world: World
@@ -108,7 +109,7 @@ class Episode:
         if sc.path == "random_waypoints" and not scene.is_empty_box:
             leader = redraw_clear(sc, scene, wc.robot_radius, leader, rng, wc.dt)
         # the person and the crowd draw from the stream only when asked for: defaults unchanged
-        leader, people = make_person(sc, scene, leader, initial, rng, wc.dt)
+        leader, people = make_person(sc, scene, leader, initial, rng, wc.dt, wc.robot_radius)
         headings = (np.full(sc.robots, leader.initial_heading)
                     if wc.has_heading else None)
         observer = Observer(config)
@@ -145,13 +146,16 @@ class Episode:
 
 
 def build_world(config: EnvConfig, initial: FloatArray, headings: FloatArray | None,
-                people: People | None) -> World:
+                people: People | ReplayedCrowd | None) -> World:
     """An episode's world at its start: a person leader and the crowd as kinematic bodies
-    when the scenario has them."""
+    when the scenario has them (a replayed crowd's placements made by the world)."""
+    from boids_env.world.crowd_replay import ReplayedCrowd
+
     sc = config.scenario
     return World(config.world, initial, config.scene, headings,
                  leader_radius=sc.leader_radius,
                  pedestrians=None if people is None else people.start_pedestrians,
                  pedestrian_radius=sc.person_radius,
                  leader_kinematic=sc.leader_kind.kinematic(sc),
-                 people_speed=fastest_speed(config)[0])
+                 people_speed=fastest_speed(config)[0],
+                 stage=people if isinstance(people, ReplayedCrowd) else None)

@@ -154,6 +154,10 @@ class EnvConfig:
         files = list(scene_files(self.world.scene))
         if self.scenario.leader_trajectory is not None:
             files.append(walk_file(self.scenario.leader_trajectory))
+        if self.scenario.crowd_file is not None:
+            from pathlib import Path
+
+            files.append(Path(self.scenario.crowd_file).resolve())
         return tuple(dict.fromkeys(files))
 
     @property
@@ -174,7 +178,8 @@ class EnvConfig:
         slots = self.observation.pedestrian_slots
         if slots is not None:
             return slots
-        return DEFAULT_PEDESTRIAN_SLOTS if self.scenario.crowd else 0
+        replayed = self.scenario.crowd_file is not None
+        return DEFAULT_PEDESTRIAN_SLOTS if self.scenario.crowd or replayed else 0
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         """A JSON-ready nested dict (tuples become lists)."""
@@ -300,6 +305,12 @@ def _people_speeds(sc: ScenarioConfig) -> list[tuple[float, str]]:
         out.append((sc.crowd_speed * CROWD_SPEED_SPREAD[1],
                     f"pedestrians at crowd_speed={sc.crowd_speed:g} m/s × "
                     f"{CROWD_SPEED_SPREAD[1]:g}"))
+    if sc.crowd_file is not None:
+        from boids_env.world.crowd_replay import max_replay_speed
+
+        fastest = max_replay_speed(sc)
+        out.append((fastest, f"the replayed crowd {sc.crowd_file} ({fastest:.3g} m/s at "
+                             f"most)"))
     return out
 
 

@@ -22,6 +22,7 @@ from boids_env.world.leader_base import Leader
 from boids_env.world.people import GAIT_RANGE, People, within_speeds
 
 if TYPE_CHECKING:
+    from boids_env.world.crowd_replay import ReplayedCrowd
     from boids_env.world.scenario import ScenarioConfig
     from boids_env.world.scene import Scene
 
@@ -79,19 +80,23 @@ class PersonLeader(Leader):
 
 
 def make_person(scenario: ScenarioConfig, scene: Scene, leader: Leader,
-                initial: FloatArray, rng: np.random.Generator, dt: float
-                ) -> tuple[Leader, People | None]:
+                initial: FloatArray, rng: np.random.Generator, dt: float,
+                robot_radius: float = 0.0) -> tuple[Leader, People | ReplayedCrowd | None]:
     """The episode's leader and people for the person and crowd fields of ``scenario``:
     ``leader`` (the path's robot leader) unchanged for ``leader="robot"`` and for a person
     walked from outside (``path="external"``), the person walking its path's corners, or the
     recorded walk; the pedestrian simulation when a person walks or a crowd is asked for
-    (None otherwise). ``initial`` (N, 2): the robots' start, kept clear of pedestrians."""
+    (None otherwise), or the replayed crowd of ``crowd_file`` (no draw). ``initial`` (N, 2):
+    the robots' start (of ``robot_radius``), kept clear of pedestrians."""
+    from boids_env.world.crowd_replay import ReplayedCrowd
     from boids_env.world.people import People
 
     sc = scenario
     kind = sc.leader_kind
     leader = kind.leader(sc, leader, dt)
     walking = kind.walks(sc)
+    if sc.crowd_file is not None:  # the scenario refuses it with a walking person or a crowd
+        return leader, ReplayedCrowd(sc, scene, dt, initial, robot_radius)
     if not walking and not sc.crowd:
         return leader, None
     path = leader.reference_path() if walking else None

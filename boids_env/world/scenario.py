@@ -126,6 +126,26 @@ class ScenarioConfig:
     are moving obstacles for the robots (observations, range sensor, metrics)."""
     crowd_speed: float = 1.0
     """The pedestrians' preferred walking speed (m/s), each drawn within ±20 %."""
+    crowd_file: str | None = None
+    """A replayed crowd (opt-in): a pedestrian-dataset file, ETH/UCY's ``frame ped x y`` text
+    or TrajNet++'s JSON lines (:mod:`~boids_env.world.crowd_files`), its pedestrians walking
+    their recorded tracks (:mod:`~boids_env.world.crowd_replay`). Not with ``crowd`` > 0 nor
+    with a person the pedestrian model walks."""
+    crowd_format: str = "auto"
+    """The crowd file's format: ``auto`` (a first line starting with ``{`` is TrajNet++),
+    ``eth_ucy`` or ``trajnet``."""
+    crowd_frame_step: float = 10.0
+    """Frame numbers from one sample of the crowd file to the next (ETH/UCY: every 10th)."""
+    crowd_rate: float = 2.5
+    """Samples per second of the crowd file (ETH/UCY and TrajNet++: 2.5 Hz, 0.4 s)."""
+    crowd_time: float = 0.0
+    """The crowd file's time (s from its first frame) at the episode's start."""
+    crowd_offset: tuple[float, float] = (0.0, 0.0)
+    """Where the crowd file's origin lies in the world (m), after rotation and scale."""
+    crowd_rotation: float = 0.0
+    """Rotation (degrees, counter-clockwise about the file's origin) of the crowd file."""
+    crowd_scale: float = 1.0
+    """Scale of the crowd file's coordinates (1: metres; the file's unit in metres)."""
 
     def __post_init__(self) -> None:
         self._check_people()
@@ -180,6 +200,48 @@ class ScenarioConfig:
                                           lo_open=True, unit="m/s"))
         for name, value in kind.check(self).items():
             _set(self, name, value)
+        self._check_replay()
+
+    def _check_replay(self) -> None:
+        """The replayed crowd's fields (``crowd_file`` ... ``crowd_scale``); the file is
+        read and checked here, its path resolved."""
+        from boids_env.world.crowd_files import CROWD_FORMATS
+
+        if self.crowd_format not in CROWD_FORMATS:
+            raise ValueError(f"crowd_format must be one of {CROWD_FORMATS}, got "
+                             f"{self.crowd_format!r}")
+        _set(self, "crowd_frame_step", _number("crowd_frame_step", self.crowd_frame_step,
+                                               0.0, 10_000, lo_open=True))
+        _set(self, "crowd_rate", _number("crowd_rate", self.crowd_rate, 0.0, 1000,
+                                         lo_open=True, unit="Hz"))
+        _set(self, "crowd_time", _number("crowd_time", self.crowd_time, 0.0, 86_400,
+                                         unit="s"))
+        if not (_pair_sequence(self.crowd_offset) and len(self.crowd_offset) == 2):
+            raise ValueError(f"crowd_offset must be an (x, y) offset in metres, got "
+                             f"{self.crowd_offset!r}")
+        _set(self, "crowd_offset", _waypoints((self.crowd_offset,), "crowd_offset")[0])
+        _set(self, "crowd_rotation", _number("crowd_rotation", self.crowd_rotation, -360, 360,
+                                             unit="degrees"))
+        _set(self, "crowd_scale", _number("crowd_scale", self.crowd_scale, 0.0, 100,
+                                          lo_open=True))
+        if self.crowd_file is None:
+            return
+        if not isinstance(self.crowd_file, str) or not self.crowd_file:
+            raise ValueError(f"crowd_file must be the path of a crowd file (ETH/UCY or "
+                             f"TrajNet++), got {self.crowd_file!r}")
+        if self.crowd:
+            raise ValueError(f"crowd_file replays a recorded crowd; give crowd=0 with it "
+                             f"(got crowd={self.crowd})")
+        if self.leader_kind.walks(self):
+            raise ValueError(f"crowd_file: the pedestrian model walking leader="
+                             f"{self.leader!r} would not see the replayed pedestrians; use "
+                             f"leader='robot' or leader='trajectory' (a recorded walk)")
+        from pathlib import Path
+
+        from boids_env.world.crowd_replay import crowd_tracks
+
+        _set(self, "crowd_file", str(Path(self.crowd_file).resolve()))
+        crowd_tracks(self)  # read and checked now: a bad file is refused before anything
 
     @property
     def leader_kind(self) -> LeaderKind:

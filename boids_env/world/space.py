@@ -20,6 +20,7 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -46,6 +47,20 @@ WALL_THICKNESS = 1.0
 """Radius (m) of the wall segments; their inner faces are at ±arena_half_size. Thick walls:
 a robot would have to travel this far in one physics substep to pass through one (the config
 caps a substep's travel at a robot radius)."""
+
+
+class Stage(Protocol):
+    """Who of the crowd is on stage when (a replayed crowd,
+    :class:`~boids_env.world.crowd_replay.ReplayedCrowd`)."""
+
+    def places(self, t: float) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+        """The pedestrians coming on or going off stage in the period from ``t`` (s), and
+        where to put them before it."""
+        ...
+
+    def present(self, t: float) -> npt.NDArray[np.bool_]:
+        """(P,) whether each pedestrian is on stage at ``t`` (s)."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -112,6 +127,9 @@ class World:
         pedestrian_radius: the pedestrians' radius (m).
         people_speed: the fastest a person (the leader or a pedestrian) walks (m/s): the
             guard's limit for people, and for robots where people push them.
+        stage: a replayed crowd (:class:`~boids_env.world.crowd_replay.ReplayedCrowd`):
+            before each period the world puts the pedestrians coming on or going off stage
+            where it says, and the guard checks only those on stage.
 
     People walk among holonomic robots only (the robot models with a heading steer their
     control bodies within a period, which a person's or a pedestrian's body does not take).
@@ -121,8 +139,9 @@ class World:
                  scene: Scene | None = None, headings: npt.ArrayLike | None = None, *,
                  leader_radius: float | None = None, pedestrians: npt.ArrayLike | None = None,
                  pedestrian_radius: float = 0.22, leader_kinematic: bool = False,
-                 people_speed: float = 0.0) -> None:
+                 people_speed: float = 0.0, stage: Stage | None = None) -> None:
         self.config = config
+        self._stage = stage
         if scene is None:
             from boids_env.world.scenes import load_scene
 
@@ -271,18 +290,31 @@ class World:
         self.commanded, sent, run = self.model.command(self, commanded, executed, native)
         if sent is not None:
             self.native = sent
+        if self._stage is not None:
+            self._place_pedestrians(*self._stage.places(self.time))
         self.model.advance(self, run)
         self.steps += 1
         self._refresh()
         if self.guard is not None:
             people = self.pedestrian_positions
             moving = self.pedestrian_velocities
+            if self._stage is not None:
+                shown = self._stage.present(self.time)
+                people, moving = people[shown], moving[shown]
             if self.person_leader:  # robot 0 is a person's body
                 people = np.concatenate([self.positions[:1], people])
                 moving = np.concatenate([self.velocities[:1], moving])
             first = 1 if self.person_leader else 0
             self.guard.check(self.steps, self.positions[first:], self.velocities[first:],
                              people, moving)
+
+    def _place_pedestrians(self, index: npt.NDArray[np.int64], points: FloatArray) -> None:
+        """Puts pedestrians ``index`` (and their control bodies) at ``points`` (K, 2) at
+        rest: a replayed pedestrian coming on or going off stage (a few a period at most)."""
+        for k, (x, y) in zip(index.tolist(), points.tolist(), strict=True):
+            for body in (self._pedestrians[k], self._pedestrians[self.p + k]):
+                body.position = (x, y)
+                body.velocity = (0.0, 0.0)
 
     def _people_velocities(self, w: FloatArray) -> None:
         """Writes the people's rows of the velocity buffer ``w`` (after the robots'): a person
