@@ -411,3 +411,25 @@ def test_an_external_leader_has_no_path_deviation_and_metrics_json_stays_json(tm
     assert metrics["leader_path_deviation"] is None
     assert metrics["leader_path_deviation_max"] is None
     assert metrics["steps"] == 10 and metrics["min_distance"] > 0
+
+
+@pytest.mark.parametrize("argv, hint", [
+    (["run", "--robts", "5"], "--robts: did you mean --robots?"),
+    (["run", "--robts=5"], "--robts: did you mean --robots?"),
+    (["eval", "--polcy", "learned"], "--polcy: did you mean --policy?"),
+    (["ros", "controller", "--polcy", "reynolds"], "--polcy: did you mean --policy?"),
+])
+def test_an_unknown_flag_suggests_the_closest_one_with_exit_2(argv, hint, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert f"boids {' '.join(a for a in argv[:2] if not a.startswith('-'))}: error: " in err, err
+    assert "unrecognized arguments" in err and hint in err, err
+
+
+def test_an_unknown_flag_far_from_every_option_gets_no_guess(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--qqqqqq"])
+    err = capsys.readouterr().err
+    assert "unrecognized arguments: --qqqqqq" in err and "did you mean" not in err, err
