@@ -16,7 +16,7 @@ try:
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
     import pygame
 except ImportError as exc:  # pragma: no cover - depends on the install
-    raise ImportError("rendering needs pygame-ce: pip install 'boids-env[render]'") from exc
+    raise ImportError("rendering needs pygame-ce: pip install -e '.[render]'") from exc
 
 ARENA = 640
 """Side of the arena drawing (px), its margin included."""
