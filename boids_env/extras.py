@@ -58,7 +58,8 @@ def require(*extras: str, purpose: str, flags: Mapping[str, str] | None = None) 
     names = ",".join(lacking)
     detail = "; ".join(f"{e}: {', '.join(m)}" for e, m in lacking.items())
     hint = f" ({TORCH_HINT})" if "train" in lacking else ""
-    wanted = " ".join(dict.fromkeys(flags[e] for e in lacking if e in (flags or {})))
+    given = flags or {}
+    wanted = " ".join(dict.fromkeys(given[e] for e in lacking if e in given))
     raise MissingExtraError(f"{purpose}{' ' * bool(wanted)}{wanted} needs the {names} extra "
                             f"({detail} not installed): {install_line(names)}{hint}")
 
