@@ -305,7 +305,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for n in [6, 12, 18] if not args.quick else [18]:
             loop = mpe_loop(n, 200)
             if loop is None:
-                print("mpe2 not installed (pip install 'boids-env[bench]'): MPE2 skipped")
+                print("mpe2 not installed (pip install -e '.[bench]'): MPE2 skipped")
                 break
             record("mpe2 simple_spread", n, n, timed(loop, repeats))
         out["results"] = rows

@@ -6,6 +6,7 @@ Pixels only; no env, no scene.
 from __future__ import annotations
 
 import os
+import warnings
 from typing import Any
 
 import numpy as np
@@ -15,7 +16,7 @@ try:
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
     import pygame
 except ImportError as exc:  # pragma: no cover - depends on the install
-    raise ImportError("rendering needs pygame-ce: pip install 'boids-env[render]'") from exc
+    raise ImportError("rendering needs pygame-ce: pip install -e '.[render]'") from exc
 
 ARENA = 640
 """Side of the arena drawing (px), its margin included."""
@@ -101,20 +102,40 @@ class NoDisplayError(RuntimeError):
     """A window was asked for where there is no display."""
 
 
-def open_window(size: tuple[int, int], caption: str) -> Any:
-    """Opens the pygame window; raises :class:`NoDisplayError` where SDL found no display and
-    fell back, unasked, to its off-screen driver (a window nobody would ever see)."""
+def display_missing() -> str | None:
+    """Why no window would be seen (SDL found no display and fell back, unasked, to its
+    off-screen driver), or None where a window can be shown or the invisible driver was asked
+    for (``SDL_VIDEODRIVER=dummy``)."""
     pygame.display.init()
     driver = pygame.display.get_driver()
-    if driver in ("offscreen", "dummy") and not os.environ.get("SDL_VIDEODRIVER"):
-        pygame.display.quit()
-        shown = os.environ.get("DISPLAY") or "not set"
-        raise NoDisplayError(
-            f"no display for the live window (DISPLAY is {shown}, WAYLAND_DISPLAY is "
+    if driver not in ("offscreen", "dummy") or os.environ.get("SDL_VIDEODRIVER"):
+        return None
+    return (f"no display (DISPLAY is "
+            f"{os.environ.get('DISPLAY') or 'not set'}, WAYLAND_DISPLAY is "
             f"{os.environ.get('WAYLAND_DISPLAY') or 'not set'}; SDL could only open its "
-            f"{driver!r} driver). Run it on a desktop (or ssh -X), or write a video instead: "
-            f"boids run --video; set SDL_VIDEODRIVER=dummy to run the window invisibly on "
-            f"purpose.")
+            f"{driver!r} driver)")
+
+
+def require_display() -> None:
+    """Raises :class:`NoDisplayError` where a window would not be seen: the live window's
+    check (``boids run --render human``), made before anything runs."""
+    reason = display_missing()
+    if reason is not None:
+        pygame.display.quit()
+        raise NoDisplayError(
+            f"{reason.replace('no display', 'no display for the live window', 1)}. Run it on "
+            f"a desktop (or ssh -X), or write a video instead: boids run --video; set "
+            f"SDL_VIDEODRIVER=dummy to run the window invisibly on purpose.")
+
+
+def open_window(size: tuple[int, int], caption: str) -> Any:
+    """Opens the pygame window. Where there is no display it warns once and draws on SDL's
+    off-screen window, as Gymnasium's own envs do headless (so that ``check_env``, which opens
+    every declared render mode, passes); :func:`require_display` is the strict check."""
+    reason = display_missing()
+    if reason is not None:
+        warnings.warn(f"render_mode='human': {reason}; the frames are drawn off-screen, unseen "
+                      f"(render_mode='rgb_array' returns them)", UserWarning, stacklevel=4)
     window = pygame.display.set_mode(size)
     pygame.display.set_caption(caption)
     return window

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+from collections.abc import Mapping
 from types import ModuleType
 
 EXTRAS: dict[str, tuple[str, ...]] = {
@@ -35,12 +36,21 @@ def missing(extra: str) -> list[str]:
     return [m for m in EXTRAS[extra] if importlib.util.find_spec(m) is None]
 
 
-def require(*extras: str, purpose: str) -> None:
+def install_line(names: str) -> str:
+    """The command that installs the extras ``names`` (``"people"``, ``"render,eval"``): from
+    the clone, as the package is not published."""
+    return f"pip install -e '.[{names}]' (in the boids-env clone)"
+
+
+def require(*extras: str, purpose: str, flags: Mapping[str, str] | None = None) -> None:
     """Raises :class:`MissingExtraError` naming every missing extra and the install line.
 
     Args:
         extras: extra names (``render``, ``ros``, ``eval``, ``train``, ``ray``).
         purpose: what needs them, for the message (``"boids run --video"``).
+        flags: the options that need each extra (``{"people": "--crowd 10"}``), added to
+            ``purpose`` for the missing extras only, so that the message names what needs
+            what is missing (not ``--video`` for the crowd's extra).
     """
     lacking = {e: m for e in dict.fromkeys(extras) if (m := missing(e))}
     if not lacking:
@@ -48,8 +58,10 @@ def require(*extras: str, purpose: str) -> None:
     names = ",".join(lacking)
     detail = "; ".join(f"{e}: {', '.join(m)}" for e, m in lacking.items())
     hint = f" ({TORCH_HINT})" if "train" in lacking else ""
-    raise MissingExtraError(f"{purpose} needs the {names} extra ({detail} not installed): "
-                            f"pip install 'boids-env[{names}]'{hint}")
+    given = flags or {}
+    wanted = " ".join(dict.fromkeys(given[e] for e in lacking if e in given))
+    raise MissingExtraError(f"{purpose}{' ' * bool(wanted)}{wanted} needs the {names} extra "
+                            f"({detail} not installed): {install_line(names)}{hint}")
 
 
 def import_extra(module: str, message: str) -> ModuleType:

@@ -5,9 +5,10 @@ controls and its messages.
 
 The only module that knows pixels; it draws a plain-data :class:`Frame` (the env builds it)
 over a static :class:`~boids_env.world.scene.Scene` and imports no env. Works headless:
-``rgb_array`` draws on an off-screen surface; ``human`` opens a window and raises
-:class:`NoDisplayError` when there is no display (set ``SDL_VIDEODRIVER=dummy`` to run a window
-invisibly on purpose, e.g. in tests).
+``rgb_array`` draws on an off-screen surface; ``human`` opens a window, and where there is no
+display warns and draws it off-screen (as Gymnasium's envs do); :func:`require_display` raises
+:class:`NoDisplayError` there instead (the live window's check; set ``SDL_VIDEODRIVER=dummy``
+to run a window invisibly on purpose, e.g. in tests).
 """
 
 from __future__ import annotations
@@ -44,12 +45,13 @@ from boids_env.drawing import (
     grid_step,
     open_window,
     pygame,
+    require_display,
     wrap_text,
 )
 from boids_env.metrics import CONTACT_TOLERANCE, contact_pairs
 from boids_env.world.scene import Scene
 
-__all__ = ["VIEWS", "Frame", "NoDisplayError", "Renderer"]
+__all__ = ["VIEWS", "Frame", "NoDisplayError", "Renderer", "require_display"]
 
 OBSTACLE = (95, 95, 92)
 """Obstacles and a map's occupied cells."""

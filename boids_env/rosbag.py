@@ -26,7 +26,7 @@ Topics, one message per control step (10 Hz) stamped ``start`` + the episode tim
   ``/markers/obstacles`` (visualization_msgs/MarkerArray: walls and blocks as lines, pillars
   as cylinders; latched, once).
 
-Pure Python through the ``rosbags`` package (``pip install 'boids-env[ros]'``); no ROS
+Pure Python through the ``rosbags`` package (``pip install -e '.[ros]'``); no ROS
 install needed. ROS 2 bags carry Humble's message definitions (Jazzy's are the same on the
 wire for these types) and version 5 metadata, which Humble's ``ros2 bag`` reads and later
 distributions read too.
@@ -64,7 +64,7 @@ try:
     from rosbags.rosbag2.enums import StoragePlugin
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 except ImportError as exc:  # pragma: no cover - depends on the install
-    raise ImportError("ROS bag support needs rosbags: pip install 'boids-env[ros]'") from exc
+    raise ImportError("ROS bag support needs rosbags: pip install -e '.[ros]'") from exc
 
 ODOM = "nav_msgs/msg/Odometry"
 TWIST = "geometry_msgs/msg/Twist"

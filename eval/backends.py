@@ -53,7 +53,7 @@ def _execute_ray(tasks: Sequence[Any], run: Callable[[Any], dict[str, Any]],
     """Ray tasks with the process backend's isolation: any exception is a failure row, a
     crashed worker fails only its task (no retries), and at most ``workers`` tasks are in
     flight so each is timed from when it starts running."""
-    ray = import_extra("ray", "backend='ray' needs: pip install 'boids-env[ray]'")
+    ray = import_extra("ray", "backend='ray' needs: pip install -e '.[ray]'")
     started = not ray.is_initialized()
     if started:
         ray.init(include_dashboard=False, log_to_driver=False)

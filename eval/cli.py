@@ -121,11 +121,12 @@ def _check_run_flags(args: argparse.Namespace) -> None:
                          f"got {args.fast:g}")
 
 
-def _needs_people(fields: dict[str, Any]) -> bool:
-    """Whether the pedestrian model runs in the (checked) config of ``fields``: a leader
-    the model walks (a person on a path) or a crowd."""
+def _people_flags(fields: dict[str, Any]) -> str:
+    """What runs the pedestrian model in the (checked) config of ``fields``, as options (a
+    leader the model walks, a crowd), or "" where nothing does."""
     sc = EnvConfig.from_kwargs(**fields).scenario
-    return sc.leader_kind.walks(sc) or sc.crowd > 0
+    walks = f"--leader {sc.leader}" if sc.leader_kind.walks(sc) else ""
+    return " ".join(f for f in (walks, f"--crowd {sc.crowd}" * (sc.crowd > 0)) if f)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -162,9 +163,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 0
     needs += ["render"] if args.video else []
     needs += ["ros"] if args.bag or args.mcap else []
-    needs += ["people"] if _needs_people(fields) else []
-    require(*needs, purpose="boids run" + " --video" * bool(args.video) + " --bag" * args.bag
-            + " --mcap" * args.mcap + (f" --policy {args.policy}" if "train" in needs else ""))
+    people = _people_flags(fields)
+    needs += ["people"] if people else []
+    require(*needs, purpose="boids run", flags={
+        "render": "--video", "ros": "--bag" * args.bag + " --mcap" * args.mcap,
+        "people": people, "train": f"--policy {args.policy}"})
     from boids_env.eval.run import run
 
     run(args.policy, out=args.out, overwrite=args.overwrite, seed=args.seed,

@@ -141,8 +141,10 @@ def run_live(policy_spec: str = "reynolds", *, preset: str = "paper", seed: int 
     from boids_env.policies.registry import load_policy, split_preset
     from boids_env.policies.reynolds_params import reynolds_params
     from boids_env.recording import Recorder
+    from boids_env.render import require_display
 
     number("fast_factor", fast_factor, 0.0, 1000.0, lo_open=True, unit="times real time")
+    require_display()  # the env's own human mode only warns; an unseen live window is refused
     overrides: dict[str, Any] = {} if leader_weight is None else {"leader_weight": leader_weight}
     name, chosen = split_preset(policy_spec, preset)
     if name == "reynolds":  # the rule radius is the controller's own here, tuned live within

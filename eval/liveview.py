@@ -1,6 +1,6 @@
 """The live view over Foxglove's WebSocket protocol (``boids run --live foxglove``,
 ``boids ros2 sim --live foxglove``): the running episode served by the Foxglove SDK
-(``pip install 'boids-env[live]'``) for Foxglove (app or web) to open at
+(``pip install -e '.[live]'``) for Foxglove (app or web) to open at
 ``ws://127.0.0.1:8765``, no ROS needed.
 
 Channels (Foxglove's own schemas, protobuf):
@@ -50,7 +50,7 @@ MAX_SPEED = 1000.0
 
 def _foxglove() -> Any:
     return import_extra("foxglove", "the live view needs the Foxglove SDK: pip install "
-                        "'boids-env[live]'")
+                        "-e '.[live]'")
 
 
 def _taken(port: int, host: str, why: str) -> ValueError:

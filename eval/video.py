@@ -30,7 +30,7 @@ FRAME_EVERY = 2
 """Control steps per frame (a frame every 0.2 s of the episode)."""
 SPEED = 2.0
 """Playback speed (times real time)."""
-VIDEO_HINT = "MP4 needs imageio's ffmpeg plugin: pip install 'boids-env[video]'"
+VIDEO_HINT = "MP4 needs imageio's ffmpeg plugin: pip install -e '.[video]'"
 
 
 @dataclass(frozen=True)

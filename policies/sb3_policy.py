@@ -201,7 +201,7 @@ def _load_model_policy(path: Path, device: str, trust: bool, env_fields: dict[st
     except ImportError as exc:
         raise ImportError(f"acting from {path.name} goes through torch (it holds no "
                           f"{ACTOR_ENTRY}: not saved by boids train, or not an MLP numpy "
-                          f"runs) and needs: pip install 'boids-env[train]' ({exc})") from exc
+                          f"runs) and needs: pip install -e '.[train]' ({exc})") from exc
 
 
 def check_untrusted_load(path: str | Path) -> None:

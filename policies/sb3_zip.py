@@ -217,7 +217,7 @@ def _state_dict(path: str | Path) -> dict[str, npt.NDArray[np.float32]]:
         import torch
     except ImportError as exc:
         raise ImportError(f"reading the weights of {Path(path).name} needs torch: pip "
-                          f"install 'boids-env[train]' ({exc})") from exc
+                          f"install -e '.[train]' ({exc})") from exc
     try:
         with open_zip(path) as zf:
             raw = read_zip_entry(zf, POLICY_ENTRY, WEIGHTS_LIMIT)

@@ -16,7 +16,7 @@ import signal
 import sys
 import threading
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -287,8 +287,30 @@ class Parser(argparse.ArgumentParser):
 
     def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
                          namespace: argparse.Namespace | None = None) -> Any:
-        return super().parse_known_args(join_negative_pairs(
+        ns, extras = super().parse_known_args(join_negative_pairs(
             sys.argv[1:] if args is None else list(args)), namespace)
+        if extras and not any(isinstance(a, argparse._SubParsersAction) for a in self._actions):
+            # a command's own parser (not ``boids`` itself, which would name its own usage)
+            self.error(unknown_text(extras, self._option_string_actions))
+        return ns, extras
+
+
+def unknown_text(extras: Sequence[str], known: Iterable[str]) -> str:
+    """``unrecognized arguments: --robts 5 (--robts: did you mean --robots?)``: each unknown
+    option with the closest of the command's own (difflib), if one is close."""
+    import difflib
+
+    hints = []
+    for arg in extras:
+        flag = arg.partition("=")[0]
+        if flag.startswith("--"):
+            # the names without the dashes every option shares, which would make anything close
+            close = difflib.get_close_matches(flag[2:], [k[2:] for k in known
+                                                         if k.startswith("--")], n=1, cutoff=0.75)
+            if close:
+                hints.append(f"{flag}: did you mean --{close[0]}?")
+    return f"unrecognized arguments: {' '.join(extras)}" + (f" ({'; '.join(hints)})"
+                                                             if hints else "")
 
 
 def join_negative_pairs(args: list[str]) -> list[str]:

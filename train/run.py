@@ -17,6 +17,7 @@ atomically (a kill never leaves a torn one).
 from __future__ import annotations
 
 import json
+import warnings
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -209,6 +210,21 @@ def check_resume(config: TrainConfig, out: Path, resume: str | Path | None,
                          f"empty first: copy the checkpoint elsewhere, or choose another --out")
 
 
+def last_minibatch_note(config: TrainConfig, slots: int) -> str | None:
+    """In words, where PPO's rollout (``n_steps`` × slots) is no multiple of ``batch_size``:
+    each epoch then ends with a smaller mini-batch, as the shipped recipes were trained
+    (their rollouts differ in size per recipe; one batch size keeps them comparable). SB3
+    warns of it in a paragraph on every start; this line replaces it. None where it divides
+    (and for SAC, which draws its batches from the buffer)."""
+    rollout = config.n_steps * slots
+    if config.algorithm != "ppo" or rollout % config.batch_size == 0:
+        return None
+    return (f"the rollout ({config.n_steps} steps x {slots} follower slots = {rollout:,}) is "
+            f"not a multiple of batch_size {config.batch_size:,}: each epoch ends with a "
+            f"mini-batch of {rollout % config.batch_size:,} (as the shipped models were "
+            f"trained)")
+
+
 def whole_rollouts(config: TrainConfig, slots: int, remaining: int) -> int:
     """``remaining`` follower-steps rounded up to what the algorithm really runs: PPO collects
     whole rollouts of ``n_steps`` × slots, SAC ``train_freq`` × slots per update."""
@@ -302,7 +318,12 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     _say_where(flock, torch.get_num_threads(), device)
     venv = VecMonitor(flock)
     try:
-        model = _model(config, venv, device, out, resume, verbose, trust_model)
+        with warnings.catch_warnings():  # said once in our words below
+            warnings.filterwarnings("ignore", "You have specified a mini-batch size",
+                                    UserWarning)
+            model = _model(config, venv, device, out, resume, verbose, trust_model)
+        if (note := last_minibatch_note(config, venv.num_envs)) is not None:
+            print(f"boids train: {note}")
         # the folder is claimed once the model is built: a checkpoint that cannot be resumed
         # leaves nothing behind
         folder.claim(out, identity(config), overwrite=overwrite, owner=folder.TRAIN,

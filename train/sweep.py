@@ -166,7 +166,7 @@ def _run_processes(jobs: Sequence[SeedJob], workers: int) -> None:
 
 
 def _run_ray(jobs: Sequence[SeedJob], workers: int) -> None:
-    ray = import_extra("ray", "backend='ray' needs: pip install 'boids-env[ray]'")
+    ray = import_extra("ray", "backend='ray' needs: pip install -e '.[ray]'")
     started = not ray.is_initialized()
     if started:
         ray.init(address=os.environ.get("RAY_ADDRESS") or None, include_dashboard=False,

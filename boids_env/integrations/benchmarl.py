@@ -1,6 +1,6 @@
 """The env as a BenchMARL task: ``BoidsTask.LEADER_FOLLOWING.get_task(config={...})``, where
 the config holds env fields by flat name (``robots``, ``scene``, ``lidar_rays``, ...; empty: the
-study's case). Needs ``pip install 'boids-env[benchmarl]'`` (BenchMARL 1.5 wants
+study's case). Needs ``pip install -e '.[benchmarl]'`` (BenchMARL 1.5 wants
 ``torchrl<0.12``; the extra pins a torchvision built for torch 2.13 so pip keeps the CPU torch).
 
 Every follower is one agent of the group ``follower``; actions are continuous (the commanded

@@ -1,4 +1,4 @@
-"""The env registered for RLlib (``pip install 'boids-env[rllib]'``, which is ``ray[rllib]``:
+"""The env registered for RLlib (``pip install -e '.[rllib]'``, which is ``ray[rllib]``:
 the ``ray`` extra alone has no RLlib, ``No module named 'tree'``).
 
 ``register(name, **fields)`` registers an env creator under ``name`` with

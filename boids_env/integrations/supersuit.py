@@ -1,5 +1,5 @@
 """SuperSuit's vector env for Stable-Baselines3, one episode per copy and seedable the SB3 way
-(``pip install 'boids-env[clients,train]'``).
+(``pip install -e '.[clients,train]'``).
 
 SuperSuit's recipe, ``concat_vec_envs_v1(pettingzoo_env_to_vec_env_v1(env), n)``, copies ``env``
 with cloudpickle, exact state included. Two pitfalls follow:

@@ -30,7 +30,7 @@ def add_ros2_parser(sub: argparse._SubParsersAction) -> None:
         "ROS install)",
         "ROS 2 nodes on the study's topics (/robot_k/odom, /robot_k/cmd_vel) speaking "
         "rmw_zenoh's protocol: a ROS 2 system with RMW_IMPLEMENTATION=rmw_zenoh_cpp and its "
-        "router sees and talks to them. Needs the ros2 extra: pip install 'boids-env[ros2]'.")
+        "router sees and talks to them. Needs the ros2 extra: pip install -e '.[ros2]'.")
     _sim_parser(ros2)
     _controller_parser(ros2)
 

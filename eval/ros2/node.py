@@ -38,7 +38,7 @@ from boids_env.extras import import_extra
 
 def _zenoh() -> Any:
     return import_extra("zenoh", "ROS 2 over Zenoh needs eclipse-zenoh and rosbags: pip "
-                        "install 'boids-env[ros2]'")
+                        "install -e '.[ros2]'")
 
 
 class Codec:

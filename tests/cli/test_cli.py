@@ -66,14 +66,31 @@ def test_a_missing_extra_is_named_before_any_work(tmp_path, capsys, monkeypatch)
     out = tmp_path / "o"
     assert main(["run", "--bag", "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert "pip install 'boids-env[ros]'" in err and "rosbags" in err
+    assert "pip install -e '.[ros]' (in the boids-env clone)" in err and "rosbags" in err
+    assert "boids run --bag needs the ros extra" in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, needs", [
+    (["--leader", "person", "--crowd", "10", "--video"],
+     "boids run --leader person --crowd 10 needs the people extra"),
+    (["--crowd", "3", "--video"], "boids run --crowd 3 needs the people extra"),
+])
+def test_a_missing_people_extra_names_the_crowd_not_the_video(argv, needs, tmp_path, capsys,
+                                                               monkeypatch):
+    real = extras.importlib.util.find_spec
+    monkeypatch.setattr(extras.importlib.util, "find_spec",
+                        lambda name: None if name == "jupedsim" else real(name))
+    assert main(["run", *argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert needs in err and "--video" not in err, err
+    assert "pip install -e '.[people]'" in err, err
 
 
 def test_missing_train_extra_gives_the_torch_hint(monkeypatch):
     monkeypatch.setattr(extras.importlib.util, "find_spec",
                         lambda name: None if name == "torch" else object())
-    with pytest.raises(extras.MissingExtraError, match=r"boids-env\[train\].*CPU build"):
+    with pytest.raises(extras.MissingExtraError, match=r"'\.\[train\]'.*CPU build"):
         extras.require("train", purpose="boids train")
 
 
@@ -411,3 +428,25 @@ def test_an_external_leader_has_no_path_deviation_and_metrics_json_stays_json(tm
     assert metrics["leader_path_deviation"] is None
     assert metrics["leader_path_deviation_max"] is None
     assert metrics["steps"] == 10 and metrics["min_distance"] > 0
+
+
+@pytest.mark.parametrize("argv, hint", [
+    (["run", "--robts", "5"], "--robts: did you mean --robots?"),
+    (["run", "--robts=5"], "--robts: did you mean --robots?"),
+    (["eval", "--polcy", "learned"], "--polcy: did you mean --policy?"),
+    (["ros", "controller", "--polcy", "reynolds"], "--polcy: did you mean --policy?"),
+])
+def test_an_unknown_flag_suggests_the_closest_one_with_exit_2(argv, hint, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert f"boids {' '.join(a for a in argv[:2] if not a.startswith('-'))}: error: " in err, err
+    assert "unrecognized arguments" in err and hint in err, err
+
+
+def test_an_unknown_flag_far_from_every_option_gets_no_guess(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--qqqqqq"])
+    err = capsys.readouterr().err
+    assert "unrecognized arguments: --qqqqqq" in err and "did you mean" not in err, err

@@ -1,6 +1,7 @@
 """``import boids_env`` registers ``boids_env/SingleFollower-v0``: ``gym.make`` and
 ``gym.make_vec`` build :class:`SingleFollowerEnv` with any config."""
 
+import os
 import subprocess
 import sys
 
@@ -67,3 +68,16 @@ def test_the_package_imports_no_gymnasium_and_registers_whichever_comes_first():
         out = subprocess.run([sys.executable, "-c", imports], capture_output=True, text=True,
                              check=True)
         assert out.stdout.split() == ["False", "True", "True"], (imports, out.stdout)
+
+
+def test_check_env_with_its_defaults_passes_headless():
+    """``check_env`` opens every declared render mode, ``human`` included; with no display
+    (and no ``SDL_VIDEODRIVER``) the window is drawn off-screen with a warning, as CartPole's."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("SDL_VIDEODRIVER", "DISPLAY", "WAYLAND_DISPLAY")}
+    code = ("import gymnasium as gym, boids_env\n"
+            "from gymnasium.utils.env_checker import check_env\n"
+            "check_env(gym.make('boids_env/SingleFollower-v0'))\nprint('passed')\n")
+    out = subprocess.run([sys.executable, "-W", "ignore", "-c", code], env=env,
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "passed", out.stderr[-2000:]

@@ -120,16 +120,31 @@ def test_a_fading_message_blends_into_the_panel():
     assert _count(gone[bottom, ARENA:], (160, 30, 30), tol=40) == 0
 
 
-def test_no_display_is_a_clear_error():
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("SDL_VIDEODRIVER", "DISPLAY", "WAYLAND_DISPLAY")}
-    code = ("from boids_env.render import Renderer, NoDisplayError\n"
-            "try:\n    Renderer('human', 5.0)\nexcept NoDisplayError as e:\n    print(e)\n"
+def _headless() -> dict[str, str]:
+    return {k: v for k, v in os.environ.items()
+            if k not in ("SDL_VIDEODRIVER", "DISPLAY", "WAYLAND_DISPLAY")}
+
+
+def test_no_display_is_a_clear_error_for_the_live_window():
+    code = ("from boids_env.render import require_display, NoDisplayError\n"
+            "try:\n    require_display()\nexcept NoDisplayError as e:\n    print(e)\n"
             "else:\n    print('opened')\n")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                         timeout=120, check=True).stdout
-    assert "no display" in out and "DISPLAY" in out and "--video" in out, out
+    out = subprocess.run([sys.executable, "-c", code], env=_headless(), capture_output=True,
+                         text=True, timeout=120, check=True).stdout
+    assert "no display for the live window" in out and "DISPLAY" in out and "--video" in out, out
     # asked for explicitly (as the tests do), the invisible driver is fine
-    out = subprocess.run([sys.executable, "-c", code], env={**env, "SDL_VIDEODRIVER": "dummy"},
+    out = subprocess.run([sys.executable, "-c", code],
+                         env={**_headless(), "SDL_VIDEODRIVER": "dummy"},
                          capture_output=True, text=True, timeout=120, check=True).stdout
     assert out.strip() == "opened", out
+
+
+def test_the_human_mode_without_a_display_warns_and_draws_off_screen():
+    """As Gymnasium's own envs do headless: ``check_env`` opens every declared render mode."""
+    code = ("import warnings\nfrom boids_env.render import Renderer\n"
+            "with warnings.catch_warnings(record=True) as caught:\n"
+            "    warnings.simplefilter('always')\n    r = Renderer('human', 5.0)\n"
+            "print(r.mode, '|'.join(str(w.message) for w in caught))\n")
+    out = subprocess.run([sys.executable, "-c", code], env=_headless(), capture_output=True,
+                         text=True, timeout=120, check=True).stdout
+    assert out.startswith("human ") and "no display" in out and "rgb_array" in out, out

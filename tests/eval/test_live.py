@@ -1,5 +1,9 @@
 """The live window's key handling (headless: plain logic, and the loop with scripted keys)."""
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -119,6 +123,16 @@ def test_no_display_is_a_clear_cli_error(monkeypatch, capsys):
     monkeypatch.setattr(live, "run_live", no_display)
     assert main(["run", "--render", "human"]) == 2
     assert "no display" in capsys.readouterr().err
+
+
+def test_the_live_window_is_refused_headless_though_the_env_only_warns():
+    """The env's human mode draws off-screen without a display (Gymnasium's check_env opens
+    it); the live window, which someone means to watch, still stops with the clear error."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("SDL_VIDEODRIVER", "DISPLAY", "WAYLAND_DISPLAY")}
+    out = subprocess.run([sys.executable, "-m", "boids_env.train.cli", "run", "--render",
+                          "human"], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and "no display for the live window" in out.stderr, out.stderr
 
 
 def test_the_live_loop_reports_the_safety_metrics(monkeypatch):

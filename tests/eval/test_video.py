@@ -123,5 +123,5 @@ def test_bad_format_and_missing_ffmpeg_are_clear(monkeypatch, recording, tmp_pat
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
                         lambda name, *a: None if name == "imageio_ffmpeg" else real(name, *a))
-    with pytest.raises(ImportError, match=r"boids-env\[video\]"):
+    with pytest.raises(ImportError, match=r"-e '\.\[video\]'"):
         check_format("mp4")

@@ -40,7 +40,7 @@ def test_the_ros2_modules_import_without_zenoh_or_foxglove():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120)
     assert out.returncode == 0, out.stderr
-    assert "pip install 'boids-env[ros2]'" in out.stdout
+    assert "pip install -e '.[ros2]'" in out.stdout
 
 
 def test_boids_run_writes_twist_stamped_bags(tmp_path):

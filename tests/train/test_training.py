@@ -280,3 +280,30 @@ def test_resume_new_inputs_widens_a_model_that_first_acts_as_before(tmp_path):
         train(routed.replace(resume_new_inputs=3), tmp_path / "bad", resume=first)
     with pytest.raises(ValueError, match="resume_new_inputs is set but no checkpoint"):
         train(routed, tmp_path / "fresh")
+
+
+def test_a_rollout_no_multiple_of_the_batch_is_one_line_not_sb3s_warning(tmp_path, capsys):
+    """560 follower-steps per rollout (80 steps × 7 slots) in batches of 150: three of 150 and
+    one of 110 per epoch, said in one line; SB3's paragraph-long warning is not shown."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        train(TrainConfig(**{**TINY, "batch_size": 150, "total_timesteps": 560}),
+              tmp_path / "t")
+    assert not [w for w in caught if "mini-batch" in str(w.message)], [
+        str(w.message) for w in caught]
+    out = capsys.readouterr().out
+    assert ("the rollout (80 steps x 7 follower slots = 560) is not a multiple of batch_size "
+            "150: each epoch ends with a mini-batch of 110") in out, out
+
+
+def test_ppo_safe_says_its_last_mini_batch_and_a_dividing_batch_says_nothing():
+    from boids_env.train.config import resolve_recipe, rollout_slots
+    from boids_env.train.run import last_minibatch_note
+
+    safe = TrainConfig.from_toml(resolve_recipe("ppo_safe"))
+    assert rollout_slots(safe) == 444  # 6 + 12 + 18 + 24 + 30 + 36 + 48 + 48, twice
+    assert "= 113,664) is not a multiple of batch_size 4,608" in last_minibatch_note(safe, 444)
+    assert "mini-batch of 3,072" in last_minibatch_note(safe, 444)
+    assert last_minibatch_note(TrainConfig(**TINY), 7) is None  # 560 = 4 × 140
