@@ -83,18 +83,34 @@ def parse_point(text: str) -> tuple[float, float]:
 
 def parse_setting(text: str) -> tuple[str, Any]:
     """``"lidar_rays=16"`` -> ("lidar_rays", 16): a config field and a JSON value (a bare word
-    is a string); the config checks the field and the value."""
+    is a string), nested at most :data:`SETTING_DEPTH` deep; the config checks the field and
+    the value."""
     import json
+
+    from boids_env.untrusted import check_depth, printable
 
     name, eq, raw = text.partition("=")
     if not eq or not name.strip():
         raise argparse.ArgumentTypeError(f"--set takes FIELD=VALUE (e.g. lidar_rays=16), got "
                                          f"{text!r}")
+    name = name.strip()
+    too_deep = argparse.ArgumentTypeError(
+        f"--set {printable(name, 40)}=...: the value nests lists deeper than {SETTING_DEPTH} "
+        "levels (waypoints need 2, e.g. waypoints=[[0,4],[-4,4]])")
     try:
         value = json.loads(raw)
+    except RecursionError:  # the decoder recurses once a level: a traceback, not a message
+        raise too_deep from None
     except ValueError:
-        value = raw
-    return name.strip(), value
+        return name, raw
+    try:
+        return name, check_depth(value, name, SETTING_DEPTH)
+    except ValueError:
+        raise too_deep from None
+
+
+SETTING_DEPTH = 8
+"""Deepest nesting of a ``--set`` value (the deepest config field, waypoints, needs 2)."""
 
 
 def add_env_args(p: argparse.ArgumentParser, path_help: str, seed_help: str) -> None:

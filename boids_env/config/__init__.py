@@ -21,6 +21,7 @@ import numpy as np
 
 from boids_env.checks import integer as _integer
 from boids_env.checks import number as _number
+from boids_env.config.clock import check_clock
 from boids_env.config.metrics import ALIGNMENT_SOURCES as ALIGNMENT_SOURCES
 from boids_env.config.metrics import REWARDS as REWARDS
 from boids_env.config.metrics import SAFE_WEIGHTS as SAFE_WEIGHTS
@@ -373,6 +374,7 @@ def _check_fits(config: EnvConfig) -> None:
     actual path: a recorded walk, a turned start grid) always runs after it, so no start
     position or leader kind skips it."""
     _check_physics(config)
+    check_clock(config)
     scene = config.scene
     key = (config.world, config.scenario, id(scene))
     if key in _FITTED:

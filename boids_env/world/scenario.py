@@ -408,4 +408,6 @@ def step_limit(scenario: ScenarioConfig, nominal_path_time: float | None, dt: fl
     if nominal_path_time is None:
         return 1000
     nominal = scenario.startup_time + nominal_path_time + scenario.tail_time
-    return max(1, math.ceil(3 * nominal / dt))
+    # the config refuses a limit past MAX_STEPS (boids_env.config.clock); the bound here
+    # only keeps a random path a little longer than that check's from overflowing
+    return max(1, math.ceil(min(3 * nominal / dt, 10**9)))

@@ -110,3 +110,26 @@ def test_boids_help_shows_examples_that_parse():
         assert argv[0] == "boids", line
         commands.add(build_parser().parse_args(argv[1:]).command)
     assert {"run", "eval", "train", "curves", "scenes"} <= commands
+
+
+@pytest.mark.parametrize("levels", [9, 5000])
+def test_a_deeply_nested_set_value_is_refused_naming_the_field(tmp_path, capsys, levels):
+    """Issue 55: ``--set waypoints=[[[[...`` ended in a RecursionError traceback from the JSON
+    decoder; it is refused by the argument parser, naming the field and the bound."""
+    value = "[" * levels + "]" * levels
+    out = tmp_path / "o"
+    with pytest.raises(SystemExit) as info:
+        main(["run", "--set", f"waypoints={value}", "--out", str(out)])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "--set waypoints=...: the value nests lists deeper than 8 levels" in err, err[-500:]
+    assert "Traceback" not in err and "RecursionError" not in err, err[-500:]
+    assert not out.exists()
+
+
+def test_set_values_nested_as_deep_as_a_config_needs_still_pass():
+    from boids_env.eval.flags import parse_setting
+
+    assert parse_setting("waypoints=[[0,4],[-4,4]]") == ("waypoints", [[0, 4], [-4, 4]])
+    assert parse_setting("x=" + "[" * 8 + "]" * 8)[1] == [[[[[[[[]]]]]]]]
+    assert parse_setting("scene=[[[not json") == ("scene", "[[[not json")

@@ -315,3 +315,28 @@ def test_a_nan_or_inf_action_is_refused_before_anything_moves(fields, compiled):
     assert c.observations.tobytes() == b.observations.tobytes()
     assert c.rewards.tobytes() == b.rewards.tobytes()
     assert e.snapshot().positions.tobytes() == twin.snapshot().positions.tobytes()
+
+
+@pytest.mark.parametrize("fields, named", [
+    ({"dt": 5e-324}, r"dt=.* s is too fine: one second .* dt must be at least 1e-09 s"),
+    ({"dt": 1e-7, "startup_time": 600}, r"dt=1e-07 s is too fine: startup_time \(600 s\)"),
+    ({"dt": 1e-8}, r"leader_speed=0.55 m/s is too slow .* at dt=1e-08 s"),
+    ({"leader_speed": 5e-324}, r"leader_speed=.* m/s is too slow for its path"),
+    ({"leader_speed": 1e-300, "path": "random_waypoints"}, "leader_speed="),
+    ({"leader_speed": 1e-300, "leader": "person", "robots": 4}, "leader_speed="),
+])
+def test_a_clock_that_counts_infinite_steps_is_refused_at_construction(fields, named):
+    """Issue 55: a dt or leader_speed just above zero (each inside its own range) passed the
+    config and ended the first reset in ``OverflowError: cannot convert float infinity to
+    integer``; the config refuses it, naming the field and the bound."""
+    with pytest.raises(ValueError, match=named):
+        parallel_env(**fields)
+
+
+def test_a_slow_clock_within_bounds_still_runs():
+    env = parallel_env(leader_speed=1e-4, robots=3, dt=0.05)
+    env.reset(seed=0)
+    assert 3 * 16 / 1e-4 / 0.05 < env.episode.step_limit <= 10**9, env.episode.step_limit
+    env = parallel_env(leader_speed=1e-300, max_cycles=3, robots=3)  # the limit is given
+    env.reset(seed=0)
+    env.step({a: np.zeros(2) for a in env.agents})
