@@ -23,9 +23,9 @@ import numpy.typing as npt
 from boids_env.files import atomic_path, read_zip_entry
 from boids_env.policies.base import BatchPolicy
 from boids_env.policies.cards import read_card
-from boids_env.policies.mlp_actor import ACTOR_ENTRY, MLPActor
+from boids_env.policies.mlp_actor import ACTOR_ENTRY, ARRAYS_LIMIT, MLPActor
 from boids_env.policies.sb3_zip import json_table
-from boids_env.untrusted import open_zip
+from boids_env.untrusted import inflated_allowance, open_zip
 
 META_ENTRY = "boids.json"
 META_LIMIT = 1 << 20
@@ -185,8 +185,10 @@ def _load_model_policy(path: Path, device: str, trust: bool, env_fields: dict[st
             except ValueError as exc:
                 raise ValueError(f"SB3 model {path}: {exc}") from None
         if raw is not None:
+            # nested: its arrays inflate at most MAX_RATIO times what the entry takes on disk
+            arrays = inflated_allowance(zf.getinfo(ACTOR_ENTRY).compress_size, ARRAYS_LIMIT)
             try:
-                return MLPActor.from_bytes(raw, env_fields, name=path.stem)
+                return MLPActor.from_bytes(raw, env_fields, name=path.stem, limit=arrays)
             except ValueError as exc:
                 raise ValueError(f"SB3 model {path}: {exc}") from None
     if not trust:
