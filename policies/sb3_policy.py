@@ -12,6 +12,7 @@ default.
 
 from __future__ import annotations
 
+import copy
 import json
 import zipfile
 from pathlib import Path
@@ -25,7 +26,14 @@ from boids_env.policies.base import BatchPolicy
 from boids_env.policies.cards import read_card
 from boids_env.policies.mlp_actor import ACTOR_ENTRY, ARRAYS_LIMIT, MLPActor
 from boids_env.policies.sb3_zip import json_table
-from boids_env.untrusted import inflated_allowance, open_zip
+from boids_env.untrusted import (
+    MAX_MODEL_BYTES,
+    check_zip_entries,
+    check_zip_entry,
+    inflated_allowance,
+    open_zip,
+    printable,
+)
 
 META_ENTRY = "boids.json"
 META_LIMIT = 1 << 20
@@ -77,17 +85,32 @@ def write_meta(path: str | Path, meta: dict[str, Any], model: Any = None) -> Non
     replaced = {META_ENTRY, ACTOR_ENTRY} if model is not None else {META_ENTRY}
     actor = actor_of(model) if model is not None else None
     try:
-        with zipfile.ZipFile(path) as zf:
-            entries = [(info, zf.read(info.filename)) for info in zf.infolist()
-                       if info.filename not in replaced]
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError) as exc:
+        with open_zip(path) as source, atomic_path(path) as tmp, \
+                zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+            check_zip_entries(source, MAX_MODEL_BYTES)  # a zip bomb: refused before copying
+            for info in source.infolist():
+                if info.filename not in replaced:
+                    _copy_entry(source, info, zf)
+            zf.writestr(META_ENTRY, text)
+            if actor is not None:
+                zf.writestr(ACTOR_ENTRY, actor.to_bytes())
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, ValueError) as exc:
         raise ValueError(f"cannot add metadata to SB3 model {path}: {exc}") from exc
-    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
-        for info, data in entries:
-            zf.writestr(info, data)
-        zf.writestr(META_ENTRY, text)
-        if actor is not None:
-            zf.writestr(ACTOR_ENTRY, actor.to_bytes())
+
+
+def _copy_entry(source: zipfile.ZipFile, info: zipfile.ZipInfo, target: zipfile.ZipFile
+                ) -> None:
+    """Copies one entry in chunks (never held whole), stopping one chunk past the bytes its
+    directory declares (a declared size that lies is refused, not followed)."""
+    allowed = check_zip_entry(info, MAX_MODEL_BYTES)
+    copied = 0
+    with source.open(info) as src, target.open(copy.copy(info), "w") as dst:
+        while chunk := src.read(1 << 20):
+            copied += len(chunk)
+            if copied > allowed:
+                raise ValueError(f"its entry {printable(info.filename, 120)} inflates beyond "
+                                 f"the {allowed:,} bytes allowed")
+            dst.write(chunk)
 
 
 def actor_of(model: Any) -> MLPActor | None:

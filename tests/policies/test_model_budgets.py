@@ -127,3 +127,62 @@ def test_an_actor_entry_that_inflates_a_thousand_times_is_refused(tmp_path):
     _refused_within_budget(lambda: load_model_policy(path),
                            r"its entry boids_actor.npz inflates [\d,]+ bytes to 209,715,200, "
                            r"more than the 20 times allowed")
+
+
+def _with_training(path, entries, **train_changes):
+    """A model zip of ``entries`` whose boids.json holds the shipped buildings model's training
+    config (no card: ``boids card --write`` derives one), ``train_changes`` applied."""
+    import json
+
+    from boids_env.policies.registry import MODELS
+
+    meta = read_meta(MODELS["learned-buildings"])
+    meta.pop("card", None)
+    meta["train_config"] = {**meta["train_config"], **train_changes}
+    path.write_bytes(zip_bytes([("boids.json", json.dumps(meta).encode(), None), *entries]))
+    return path
+
+
+def test_writing_a_card_into_a_crafted_model_is_refused_before_inflating(tmp_path, capsys):
+    from boids_env.train.cli import main
+
+    path = _with_training(tmp_path / "m.zip", [("policy.pth", deflated_zeros(2 << 30),
+                                                2 << 30)])
+    before = path.read_bytes()
+    _refused_within_budget(
+        lambda: _raise_on_failure(main(["card", str(path), "--write"]), capsys),
+        r"its entry policy.pth holds 2,147,483,648 bytes uncompressed, more than the "
+        r"536,870,912 allowed")
+    assert path.read_bytes() == before, "the model is left as it was"
+    for size in (200 << 20, 3 << 20):  # a thousand times its size; a size that lies
+        lying = _with_training(tmp_path / f"{size}.zip",
+                               [("policy.pth", deflated_zeros(200 << 20), size)])
+        _refused_within_budget(
+            lambda p=lying: _raise_on_failure(main(["card", str(p), "--write"]), capsys),
+            r"more than the 20 times allowed|Bad CRC-32 for file 'policy.pth'")
+
+
+def _raise_on_failure(code, capsys):
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    if code:
+        raise ValueError(err)
+
+
+def test_a_card_check_over_thousands_of_floor_plans_is_decided_in_seconds(tmp_path):
+    from boids_env.policies.cards import card_from_training, read_card
+
+    meta = read_meta(_with_training(tmp_path / "m.zip", []))
+    for count, match in ((30_000, "at most 4,096 worlds"), (100, "100 floor plans, more than")):
+        training = {**meta["train_config"],
+                    "worlds": [{"scene": f"floorplan:{k}"} for k in range(count)]}
+        _refused_within_budget(lambda t=training: card_from_training(t), match)
+        assert read_card("m.zip", {"train_config": training}) is None  # no card, not a wrong one
+    import time
+
+    start = time.perf_counter()
+    training = {**meta["train_config"],
+                "worlds": [{"scene": f"floorplan:{k}"} for k in range(60)]}
+    card = card_from_training(training, meta.get("env_fields"))
+    assert card.floorplans == tuple(range(60)) and card.scenes == ("floorplan",)
+    assert time.perf_counter() - start < 4, "60 floor plans: each not generated"
