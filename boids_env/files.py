@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from boids_env import temporaries
+from boids_env.untrusted import check_zip_entry
 
 
 @contextlib.contextmanager
@@ -93,24 +94,24 @@ def append_line(path: str | Path, line: str) -> None:
 
 def read_zip_entry(archive: zipfile.ZipFile, name: str, limit: int) -> bytes:
     """The bytes of the entry ``name`` of ``archive``, read only if it holds at most ``limit``
-    bytes uncompressed: a zip bomb (a small entry that inflates to gigabytes) is refused with
-    a ``ValueError`` naming the entry before it is inflated, not after memory runs out.
+    bytes uncompressed and inflates at most :data:`~boids_env.untrusted.MAX_RATIO` times its
+    compressed size (:func:`~boids_env.untrusted.check_zip_entry`): a zip bomb (a small entry
+    that inflates to gigabytes) is refused with a ``ValueError`` naming the entry before it is
+    inflated, not after memory runs out.
 
     Both the size the archive declares and the bytes actually inflated are checked (read in
-    chunks, stopping one byte past the limit). ``KeyError`` when there is no such entry."""
+    chunks, stopping one byte past the allowance). ``KeyError`` when there is no such entry."""
     info = archive.getinfo(name)
-    if info.file_size > limit:
-        raise ValueError(f"its entry {name} holds {info.file_size:,} bytes uncompressed, more "
-                         f"than the {limit:,} allowed")
+    allowed = check_zip_entry(info, limit)
     data = bytearray()
     with archive.open(info) as fh:
-        while len(data) <= limit:
-            chunk = fh.read(min(1 << 20, limit + 1 - len(data)))
+        while len(data) <= allowed:
+            chunk = fh.read(min(1 << 20, allowed + 1 - len(data)))
             if not chunk:
                 break
             data += chunk
-    if len(data) > limit:
-        raise ValueError(f"its entry {name} inflates beyond the {limit:,} bytes allowed")
+    if len(data) > allowed:
+        raise ValueError(f"its entry {name} inflates beyond the {allowed:,} bytes allowed")
     return bytes(data)
 
 

@@ -39,6 +39,12 @@ MAX_NODES = 100_000
 """Most values a YAML document may expand to, aliases counted as often as they are used."""
 MAX_MODEL_BYTES = 512 * 1024 * 1024
 """A model zip larger than this (512 MiB) is refused before it is opened (ours are 1-5 MB)."""
+MAX_RATIO = 20
+"""Most times an entry of a zip may inflate its compressed bytes, once it holds more than
+:data:`RATIO_FREE` (float weights inflate about 1.1 times, SB3's ``data`` about 3; a zip bomb
+1,000): a small file never inflates to gigabytes, whatever its directory declares."""
+RATIO_FREE = 4 << 20
+"""Uncompressed bytes (4 MiB) an entry may hold whatever its compression ratio."""
 MAX_ZIP_ENTRIES = 1000
 """Most entries in a model zip (SB3 writes 5, ``boids train`` 7)."""
 MAX_NAME = 100
@@ -182,6 +188,51 @@ def open_zip(path: str | Path, field: str = "policy model",
         raise ValueError(f"{field} {quote_path(path)}: {len(archive.filelist):,} entries, more "
                          f"than the {MAX_ZIP_ENTRIES:,} allowed")
     return archive
+
+
+def inflated_allowance(compressed: int, limit: int) -> int:
+    """The most bytes ``compressed`` bytes of a zip may inflate to within ``limit``: at most
+    :data:`MAX_RATIO` times as many, :data:`RATIO_FREE` in any case."""
+    return min(limit, max(RATIO_FREE, MAX_RATIO * compressed))
+
+
+_METHODS = {zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED, zipfile.ZIP_BZIP2, zipfile.ZIP_LZMA}
+
+
+def check_zip_entry(info: zipfile.ZipInfo, limit: int) -> int:
+    """The bytes the zip entry ``info`` may inflate to (:func:`inflated_allowance`), once the
+    size its directory declares is within it: ``ValueError`` naming the entry and the limit
+    (``limit`` bytes, or :data:`MAX_RATIO` times its compressed size) otherwise. The declared
+    size may lie: read the entry stopping one byte past the returned allowance."""
+    name = printable(info.filename, 120)
+    if info.flag_bits & 0x1:
+        raise ValueError(f"its entry {name} is encrypted")
+    if info.compress_type not in _METHODS:
+        raise ValueError(f"its entry {name} is compressed by method {info.compress_type}, not "
+                         f"one of {sorted(_METHODS)} (stored, deflate, bzip2, lzma)")
+    if info.file_size > limit:
+        raise ValueError(f"its entry {name} holds {info.file_size:,} bytes uncompressed, more "
+                         f"than the {limit:,} allowed")
+    allowed = inflated_allowance(info.compress_size, limit)
+    if info.file_size > allowed:
+        raise ValueError(f"its entry {name} inflates {info.compress_size:,} bytes to "
+                         f"{info.file_size:,}, more than the {MAX_RATIO} times allowed beyond "
+                         f"{RATIO_FREE:,} bytes (a zip bomb)")
+    return allowed
+
+
+def check_zip_entries(archive: zipfile.ZipFile, limit: int) -> None:
+    """Every entry of ``archive`` checked by :func:`check_zip_entry` (at most ``limit`` bytes
+    each), and all of them together inflating at most :data:`MAX_RATIO` times what they take
+    compressed (:data:`RATIO_FREE` in any case): for a reader that inflates them all (a copy),
+    whose work then stays in proportion to the file. ``ValueError`` naming the limit."""
+    for info in archive.infolist():
+        check_zip_entry(info, limit)
+    total = sum(info.file_size for info in archive.infolist())
+    allowed = inflated_allowance(sum(info.compress_size for info in archive.infolist()), limit)
+    if total > allowed:
+        raise ValueError(f"its entries hold {total:,} bytes uncompressed, more than the "
+                         f"{allowed:,} allowed")
 
 
 def read_text(path: str | Path, field: str, limit: int) -> str:

@@ -46,6 +46,9 @@ MAX_ITEMS = 64
 """The most entries of any list of a card."""
 MAX_TEXT = 400
 """The most characters of any text of a card."""
+MAX_WORLDS = 4096
+"""The most worlds of a training config a card is derived from (a card lists at most
+:data:`MAX_ITEMS` floor plans)."""
 def leader_words(name: str) -> str:
     """How a warning names leader kind ``name`` (its kind's own words; an unknown name
     as it is)."""
@@ -358,13 +361,14 @@ def card_from_training(train_config: dict[str, Any], env_fields: dict[str, Any] 
     kept), robots, crowds and leaders over ``env_fields``, its group sizes, leader speeds,
     paths, standstills and noise, and the observation layout of ``env_fields`` (route sensing
     included). No validation figures: add them once measured."""
-    from boids_env.config import EnvConfig
     from boids_env.observations import layout_of
     from boids_env.world import floorplans
 
     base = dict(env_fields if env_fields is not None else train_config.get("env_fields") or {})
     worlds = train_config.get("worlds") or [{}]
-    configs = [EnvConfig.from_kwargs(**{**base, **dict(w)}) for w in worlds]
+    if not isinstance(worlds, list | tuple) or len(worlds) > MAX_WORLDS:
+        raise ValueError(f"train_config worlds must be a list of at most {MAX_WORLDS:,} "
+                         f"worlds to derive a card from, got {_short(worlds)[:40]}")
     scenes, plans = [], []
     for world in (w.get("scene", w.get("map", base.get("scene", base.get("map", "arena"))))
                   for w in worlds):
@@ -372,6 +376,10 @@ def card_from_training(train_config: dict[str, Any], env_fields: dict[str, Any] 
         seed = floorplans.parse(world) if scenes[-1] == "floorplan" else None
         if seed is not None:
             plans.append(seed)
+    if len(set(plans)) > MAX_ITEMS:  # refused before any floor plan is generated
+        raise ValueError(f"train_config worlds hold {len(set(plans)):,} floor plans, more than "
+                         f"the {MAX_ITEMS} a card lists")
+    configs = _world_configs(base, worlds, scenes)
     config = configs[0]
     sizes = [int(n) for n in train_config.get("group_sizes") or [config.scenario.robots]]
     speeds = [float(v) for v in train_config.get("leader_speeds")
@@ -391,6 +399,28 @@ def card_from_training(train_config: dict[str, Any], env_fields: dict[str, Any] 
         obs_noise=max(float(v) for v in train_config.get("obs_noises") or [0.0]),
         safety_filter=any(c.safety.safety_filter for c in configs),
         observation=tuple((n, s) for n, s in layout.blocks), sensing=sensing_words(config))
+
+
+def _world_configs(base: dict[str, Any], worlds: Any, kinds: list[str]) -> list[Any]:
+    """The env config of each world, those that differ only in their floor plan's seed built
+    once (a card reads nothing a floor plan's seed changes: the robot, leader, crowd, safety
+    filter, drive; generating one costs half a second): the first world exactly, at most
+    :data:`MAX_ITEMS` others (``ValueError`` beyond)."""
+    from boids_env.config import EnvConfig
+
+    built: dict[str, Any] = {}
+    configs = []
+    for k, (world, kind) in enumerate(zip(worlds, kinds, strict=True)):
+        fields = {**base, **dict(world)}
+        key = json.dumps({**fields, "scene": "floorplan"} if kind == "floorplan" and k else
+                         fields, sort_keys=True, default=repr)
+        if key not in built:
+            if len(built) > MAX_ITEMS:
+                raise ValueError(f"train_config worlds differ in more than {MAX_ITEMS} ways; "
+                                 f"a card describes at most that many")
+            built[key] = EnvConfig.from_kwargs(**fields)
+        configs.append(built[key])
+    return configs
 
 
 def sensing_words(config: EnvConfig) -> str:

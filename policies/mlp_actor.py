@@ -21,11 +21,16 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from boids_env.files import read_zip_entry
 from boids_env.policies import exact, kernels
 from boids_env.policies.base import BatchPolicy
+from boids_env.untrusted import printable
 
 ACTOR_ENTRY = "boids_actor.npz"
 ACTIVATIONS = {"tanh": exact.tanh, "relu": exact.relu}
+ARRAYS_LIMIT = 1 << 28
+"""The most bytes a stored actor's arrays may hold in all, 256 MiB (a layer of 4,096 x 4,096,
+the widest a training config allows: 64 MiB)."""
 _ACTIVATION_CODES = {"tanh": 1, "relu": 2}
 """The compiled path's names for :data:`ACTIVATIONS` (0: none, the action head)."""
 
@@ -112,12 +117,12 @@ class MLPActor(BatchPolicy):
 
     @classmethod
     def from_bytes(cls, raw: bytes, env_fields: dict[str, Any] | None = None,
-                   name: str = "mlp") -> MLPActor:
-        """The actor stored by :meth:`to_bytes`; ``ValueError`` for anything else."""
+                   name: str = "mlp", limit: int = ARRAYS_LIMIT) -> MLPActor:
+        """The actor stored by :meth:`to_bytes`; ``ValueError`` for anything else, among it
+        arrays that hold more than ``limit`` bytes in all (refused from the entry's directory
+        before any is inflated or allocated)."""
         try:
-            with np.load(io.BytesIO(raw), allow_pickle=False) as data:
-                _check_members(data.zip)
-                arrays = {key: data[key] for key in data.files}
+            arrays = _read_arrays(raw, limit)
             layers = sum(1 for key in arrays if key.startswith("w"))
             weights = [arrays[f"w{k}"] for k in range(layers)]
             biases = [arrays[f"b{k}"] for k in range(layers)]
@@ -132,20 +137,38 @@ MAX_MEMBERS = 64
 """Most arrays in a stored actor (3 plus 2 per layer)."""
 
 
-def _check_members(archive: zipfile.ZipFile) -> None:
-    """Refuses, before numpy allocates any of them, an actor whose arrays are too many or
-    declare more data than their entry holds (numpy sizes an array from its header and
-    allocates it before reading; a small entry could declare terabytes)."""
-    infos = archive.infolist()
-    if len(infos) > MAX_MEMBERS:
-        raise ValueError(f"{len(infos)} arrays, more than the {MAX_MEMBERS} allowed")
-    for info in infos:
-        with archive.open(info) as fh:
-            version = np.lib.format.read_magic(fh)
-            header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                      else np.lib.format.read_array_header_2_0)
-            shape, _, dtype = header(fh)
-            nbytes = math.prod(shape) * dtype.itemsize
-        if nbytes > info.file_size:
-            raise ValueError(f"array {info.filename} declares {nbytes:,} bytes but its entry "
-                             f"holds {info.file_size:,}")
+def _read_arrays(raw: bytes, limit: int) -> dict[str, Any]:
+    """The arrays of an ``.npz``, each read within its budget: refused, before numpy allocates
+    any of them, when they are too many, declare more than ``limit`` bytes in all, inflate
+    more than :data:`~boids_env.untrusted.MAX_RATIO` times (a zip bomb) or declare in their
+    header more data than their entry holds (numpy sizes an array from its header and
+    allocates it before reading; a small entry could declare terabytes). Nothing is
+    unpickled."""
+    with zipfile.ZipFile(io.BytesIO(raw)) as archive:
+        infos = archive.infolist()
+        if len(infos) > MAX_MEMBERS:
+            raise ValueError(f"{len(infos)} arrays, more than the {MAX_MEMBERS} allowed")
+        total = sum(info.file_size for info in infos)
+        if total > limit:
+            raise ValueError(f"its arrays hold {total:,} bytes uncompressed, more than the "
+                             f"{limit:,} allowed")
+        arrays = {}
+        for info in infos:
+            data = read_zip_entry(archive, info.filename, limit)
+            arrays[info.filename.removesuffix(".npy")] = _array(info.filename, data)
+    return arrays
+
+
+def _array(name: str, data: bytes) -> Any:
+    """The array an ``.npy`` entry holds, its header checked against the entry's size."""
+    fh = io.BytesIO(data)
+    version = np.lib.format.read_magic(fh)
+    header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+              else np.lib.format.read_array_header_2_0)
+    shape, _, dtype = header(fh)
+    nbytes = math.prod(shape) * dtype.itemsize
+    if nbytes > len(data) - fh.tell():
+        raise ValueError(f"array {printable(name, 120)} declares {nbytes:,} bytes but its entry "
+                         f"holds {len(data):,}")
+    fh.seek(0)
+    return np.lib.format.read_array(fh, allow_pickle=False)

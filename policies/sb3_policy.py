@@ -12,6 +12,7 @@ default.
 
 from __future__ import annotations
 
+import copy
 import json
 import zipfile
 from pathlib import Path
@@ -23,9 +24,16 @@ import numpy.typing as npt
 from boids_env.files import atomic_path, read_zip_entry
 from boids_env.policies.base import BatchPolicy
 from boids_env.policies.cards import read_card
-from boids_env.policies.mlp_actor import ACTOR_ENTRY, MLPActor
+from boids_env.policies.mlp_actor import ACTOR_ENTRY, ARRAYS_LIMIT, MLPActor
 from boids_env.policies.sb3_zip import json_table
-from boids_env.untrusted import open_zip
+from boids_env.untrusted import (
+    MAX_MODEL_BYTES,
+    check_zip_entries,
+    check_zip_entry,
+    inflated_allowance,
+    open_zip,
+    printable,
+)
 
 META_ENTRY = "boids.json"
 META_LIMIT = 1 << 20
@@ -77,17 +85,32 @@ def write_meta(path: str | Path, meta: dict[str, Any], model: Any = None) -> Non
     replaced = {META_ENTRY, ACTOR_ENTRY} if model is not None else {META_ENTRY}
     actor = actor_of(model) if model is not None else None
     try:
-        with zipfile.ZipFile(path) as zf:
-            entries = [(info, zf.read(info.filename)) for info in zf.infolist()
-                       if info.filename not in replaced]
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError) as exc:
+        with open_zip(path) as source, atomic_path(path) as tmp, \
+                zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+            check_zip_entries(source, MAX_MODEL_BYTES)  # a zip bomb: refused before copying
+            for info in source.infolist():
+                if info.filename not in replaced:
+                    _copy_entry(source, info, zf)
+            zf.writestr(META_ENTRY, text)
+            if actor is not None:
+                zf.writestr(ACTOR_ENTRY, actor.to_bytes())
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, ValueError) as exc:
         raise ValueError(f"cannot add metadata to SB3 model {path}: {exc}") from exc
-    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
-        for info, data in entries:
-            zf.writestr(info, data)
-        zf.writestr(META_ENTRY, text)
-        if actor is not None:
-            zf.writestr(ACTOR_ENTRY, actor.to_bytes())
+
+
+def _copy_entry(source: zipfile.ZipFile, info: zipfile.ZipInfo, target: zipfile.ZipFile
+                ) -> None:
+    """Copies one entry in chunks (never held whole), stopping one chunk past the bytes its
+    directory declares (a declared size that lies is refused, not followed)."""
+    allowed = check_zip_entry(info, MAX_MODEL_BYTES)
+    copied = 0
+    with source.open(info) as src, target.open(copy.copy(info), "w") as dst:
+        while chunk := src.read(1 << 20):
+            copied += len(chunk)
+            if copied > allowed:
+                raise ValueError(f"its entry {printable(info.filename, 120)} inflates beyond "
+                                 f"the {allowed:,} bytes allowed")
+            dst.write(chunk)
 
 
 def actor_of(model: Any) -> MLPActor | None:
@@ -185,8 +208,10 @@ def _load_model_policy(path: Path, device: str, trust: bool, env_fields: dict[st
             except ValueError as exc:
                 raise ValueError(f"SB3 model {path}: {exc}") from None
         if raw is not None:
+            # nested: its arrays inflate at most MAX_RATIO times what the entry takes on disk
+            arrays = inflated_allowance(zf.getinfo(ACTOR_ENTRY).compress_size, ARRAYS_LIMIT)
             try:
-                return MLPActor.from_bytes(raw, env_fields, name=path.stem)
+                return MLPActor.from_bytes(raw, env_fields, name=path.stem, limit=arrays)
             except ValueError as exc:
                 raise ValueError(f"SB3 model {path}: {exc}") from None
     if not trust:
