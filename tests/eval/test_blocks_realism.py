@@ -46,7 +46,7 @@ def test_eval_cli_refuses_blocks_with_seeds_and_a_bad_realism(capsys, tmp_path):
 
 @pytest.mark.slow
 def test_each_block_scores_what_a_five_seed_evaluation_of_its_seeds_reports(tmp_path):
-    short = PAPER.with_env(max_cycles=60)
+    short = PAPER.with_env(max_cycles=25)
     policy = [PolicySpec("reynolds", "paper")]
     both = tmp_path / "blocks"
     run_suite(policy, short.with_blocks(2), both, workers=2, progress=False)
