@@ -293,6 +293,33 @@ def _at_boundary(model: Any, venv: VecMonitor, resume: str | Path, config: Train
     return dict(state.get("extra") or {})
 
 
+def _best_cost(evaluator: FlockEvalCallback) -> dict[str, Any]:
+    """What a rollout boundary keeps of the evaluations: the best cost so far, exactly."""
+    return {"best_cost": None if evaluator.best == float("inf") else evaluator.best}
+
+
+def _saved_best(extra: dict[str, Any] | None) -> float | None:
+    """The best cost a rollout boundary kept (None: no boundary)."""
+    if extra is None:
+        return None
+    best = extra.get("best_cost")
+    return float("inf") if best is None else float(best)
+
+
+def _callbacks(config: TrainConfig, out: Path, slots: int, meta: dict[str, Any],
+               digest: str, save: Any, verbose: int) -> tuple[FlockEvalCallback, list[Any]]:
+    """The periodic evaluation and the callbacks of a training (checkpoints carrying their
+    rollout boundary), the progress summary aside."""
+    evaluator = FlockEvalCallback(out, config.eval_every, config.eval_seeds,
+                                  config.env_fields, save_best=save)
+    evaluator.verbose = verbose
+    callbacks: list[Any] = [TrainingMetricsCallback(), evaluator]
+    if config.checkpoint_every:
+        callbacks.append(Checkpoints(config.checkpoint_every // slots, out / "checkpoints",
+                                     meta, digest, lambda: _best_cost(evaluator)))
+    return evaluator, callbacks
+
+
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
           overwrite: bool = False, progress_bar: bool = False, verbose: int = 0,
           trust_model: bool = False) -> Path:
@@ -349,23 +376,11 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
                 if at is not None:  # the rollout boundary it resumes from
                     boundary.write(tmp, at)
 
-        evaluator = FlockEvalCallback(out, config.eval_every, config.eval_seeds,
-                                      config.env_fields, save_best=save)
-        evaluator.verbose = verbose
         digest = boundary.digest(identity(config))
-
-        def best_cost() -> dict[str, Any]:
-            return {"best_cost": None if evaluator.best == float("inf") else evaluator.best}
-
+        evaluator, callbacks = _callbacks(config, out, venv.num_envs, meta, digest, save,
+                                          verbose)
         if resume is not None:
-            best = (extra or {}).get("best_cost")
-            evaluator.resume_at(model.num_timesteps, None if extra is None else
-                                float("inf") if best is None else float(best))
-        callbacks: list[Any] = [TrainingMetricsCallback(), evaluator]
-        if config.checkpoint_every:
-            callbacks.append(Checkpoints(
-                config.checkpoint_every // venv.num_envs, out / "checkpoints", meta,
-                digest, best_cost))
+            evaluator.resume_at(model.num_timesteps, _saved_best(extra))
         if remaining > 0:
             rounded = whole_rollouts(config, venv.num_envs, remaining)
             if rounded != remaining:
@@ -377,7 +392,7 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
                         reset_num_timesteps=resume is None, tb_log_name="run")
             # the end of a rollout and its update: a boundary a longer training goes on from
             if boundary.applies(model):
-                final = boundary.capture(model, venv, digest, best_cost())
+                final = boundary.capture(model, venv, digest, _best_cost(evaluator))
             if config.eval_every and evaluator.last != model.num_timesteps:
                 _final_evaluation(evaluator, config)
         save(out / "model.zip", final)
