@@ -136,6 +136,38 @@ class FlockEvalCallback(BaseCallback):
         if self.every:
             self._next = (self.num_timesteps // self.every + 1) * self.every
 
+    def resume_at(self, timesteps: int, best: float | None = None) -> None:
+        """A resume from ``timesteps`` in this folder: the rows of ``evaluations.csv`` after
+        them go (the resumed run evaluates those timesteps again, so none is written twice;
+        a row torn by a kill goes too), and the best cost so far is ``best`` (a rollout
+        boundary's, exact) or else that of the rows kept (to their six decimals), so
+        ``best_model.zip`` is replaced when an uninterrupted run would replace it."""
+        if best is not None:
+            self.best = best
+        path = self.out / "evaluations.csv"
+        if not path.is_file():
+            return
+        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+        if not lines:
+            return
+        header = lines[0].split(",")
+        kept = [lines[0]]
+        for line in lines[1:]:
+            row = line.split(",")
+            try:
+                steps, cost = int(row[0]), float(row[header.index("cost")])
+            except (ValueError, IndexError):
+                continue
+            if len(row) == len(header) and steps <= timesteps:
+                kept.append(line)
+                if best is None:
+                    self.best = min(self.best, cost)
+        if len(kept) != len(lines):
+            with atomic_path(path) as tmp:
+                # the csv module's line ends, as the rows were written
+                tmp.write_text("".join(f"{line}\r\n" for line in kept), encoding="utf-8",
+                               newline="")
+
     def _on_step(self) -> bool:
         if self.every and self.num_timesteps >= self._next:
             self._next += self.every
@@ -175,17 +207,50 @@ class FlockEvalCallback(BaseCallback):
 
 class Checkpoints(CheckpointCallback):
     """SB3's checkpoints, each model zip tagged with the run's ``boids.json`` metadata so it
-    loads as a policy (``boids run --policy .../checkpoints/model_..._steps.zip``)."""
+    loads as a policy (``boids run --policy .../checkpoints/model_..._steps.zip``) and, for
+    PPO, carrying the rollout boundary it resumes from bit for bit
+    (:mod:`boids_env.train.boundary`; ``identity``: the training's, as its digest).
 
-    def __init__(self, every_calls: int, save_path: str | Path, meta: dict[str, Any]) -> None:
+    A checkpoint falls every ``every_calls`` VecEnv steps counted from the training's start
+    (its follower-steps a multiple of ``every_calls`` × slots), so a resumed run writes the
+    checkpoints an uninterrupted one does."""
+
+    def __init__(self, every_calls: int, save_path: str | Path, meta: dict[str, Any],
+                 identity: str = "", extra: Callable[[], dict[str, Any]] | None = None
+                 ) -> None:
         super().__init__(save_freq=max(every_calls, 1), save_path=str(save_path),
                          name_prefix="model")
         self.meta = meta
+        self.identity = identity
+        self.extra = extra
+        """What else a boundary keeps (JSON), asked at the rollout's start."""
+        self._boundary: bytes | None = None
+
+    @property
+    def _every(self) -> int:
+        return self.save_freq * self.training_env.num_envs
+
+    def _on_rollout_start(self) -> None:
+        from boids_env.train import boundary
+
+        self._boundary = None
+        if not boundary.applies(self.model):
+            return
+        coming = self.model.n_steps * self.training_env.num_envs
+        now = self.model.num_timesteps
+        if now // self._every != (now + coming) // self._every:
+            # a checkpoint falls in this rollout: keep the state it resumes from
+            self._boundary = boundary.capture(self.model, self.training_env, self.identity,
+                                              self.extra() if self.extra else {})
 
     def _on_step(self) -> bool:
-        if self.n_calls % self.save_freq == 0:
+        if self.num_timesteps % self._every == 0:
             # SB3's own save writes the zip in place; here it is written whole or not at all
             with atomic_path(self._checkpoint_path(extension="zip")) as tmp:
                 self.model.save(tmp)
                 write_meta(tmp, self.meta, self.model)
+                if self._boundary is not None:
+                    from boids_env.train import boundary
+
+                    boundary.write(tmp, self._boundary)
         return True

@@ -30,6 +30,7 @@ from boids_env.files import atomic_path, read_zip_entry, write_json
 from boids_env.policies.cards import CARD_KEY
 from boids_env.policies.registry import SB3_ENTRIES
 from boids_env.policies.sb3_policy import read_meta, write_meta
+from boids_env.train import boundary
 from boids_env.train.callbacks import (
     Checkpoints,
     FlockEvalCallback,
@@ -260,22 +261,79 @@ def _say_where(flock: FlockVecEnv, threads: int, device: str) -> None:
 
 
 def _model(config: TrainConfig, venv: VecMonitor, device: str, out: Path,
-           resume: str | Path | None, verbose: int, trust_model: bool) -> Any:
+           resume: str | Path | None, verbose: int, trust_model: bool
+           ) -> tuple[Any, dict[str, Any] | None]:
     """The learner :func:`train` trains: the checkpoint ``resume`` (a checkpoint that cannot
-    be read is refused before anything is written), else a new one built from ``config``."""
+    be read is refused before anything is written), else a new one built from ``config``;
+    and the rollout boundary it was put back at (its callbacks' state), None when it goes on
+    with fresh episodes."""
     import torch
 
     if resume is None:
         return learner_class(config.algorithm)(
             "MlpPolicy", venv, device=device, verbose=verbose,
-            tensorboard_log=str(out / "tb"), **config.algorithm_kwargs())
+            tensorboard_log=str(out / "tb"), **config.algorithm_kwargs()), None
     model = load_checkpoint(resume, config, venv, device, str(out / "tb"), verbose,
                             trust=trust_model)
     model.set_random_seed(config.seed)
+    extra = _at_boundary(model, venv, resume, config)
     if config.resume_log_std is not None:  # explore again (PPO's state-free log std)
         with torch.no_grad():
             model.policy.log_std.fill_(config.resume_log_std)
-    return model
+    return model, extra
+
+
+def _at_boundary(model: Any, venv: VecMonitor, resume: str | Path, config: TrainConfig
+                 ) -> dict[str, Any] | None:
+    """Puts a resumed model back at the rollout boundary its checkpoint carries
+    (:mod:`boids_env.train.boundary`) when it is of this training, so the run goes on bit for
+    bit as if never stopped; returns the callbacks' saved state, or None (and says why) when
+    the env copies restart their episodes instead."""
+    state = boundary.read(resume) if boundary.applies(model) else None
+    where = f"boids train: resuming from {resume}"
+    if state is None:
+        why = "an older checkpoint" if boundary.applies(model) else "SAC's buffer is not kept"
+        print(f"{where} with fresh episodes (no rollout boundary to go on from: {why})")
+        return None
+    if (state["identity"] != boundary.digest(identity(config)) or config.resume_new_inputs
+            or config.resume_new_blocks):
+        print(f"{where} with fresh episodes (its rollout boundary is of another training "
+              f"config)")
+        return None
+    if not boundary.restore(model, venv, state):
+        print(f"{where} with fresh episodes (its saved episodes replay otherwise here: the "
+              f"env changed since)")
+        return None
+    print(f"{where} at its rollout boundary, {model.num_timesteps:,} follower-steps: the "
+          f"run goes on as if never stopped")
+    return dict(state.get("extra") or {})
+
+
+def _best_cost(evaluator: FlockEvalCallback) -> dict[str, Any]:
+    """What a rollout boundary keeps of the evaluations: the best cost so far, exactly."""
+    return {"best_cost": None if evaluator.best == float("inf") else evaluator.best}
+
+
+def _saved_best(extra: dict[str, Any] | None) -> float | None:
+    """The best cost a rollout boundary kept (None: no boundary)."""
+    if extra is None:
+        return None
+    best = extra.get("best_cost")
+    return float("inf") if best is None else float(best)
+
+
+def _callbacks(config: TrainConfig, out: Path, slots: int, meta: dict[str, Any],
+               digest: str, save: Any, verbose: int) -> tuple[FlockEvalCallback, list[Any]]:
+    """The periodic evaluation and the callbacks of a training (checkpoints carrying their
+    rollout boundary), the progress summary aside."""
+    evaluator = FlockEvalCallback(out, config.eval_every, config.eval_seeds,
+                                  config.env_fields, save_best=save)
+    evaluator.verbose = verbose
+    callbacks: list[Any] = [TrainingMetricsCallback(), evaluator]
+    if config.checkpoint_every:
+        callbacks.append(Checkpoints(config.checkpoint_every // slots, out / "checkpoints",
+                                     meta, digest, lambda: _best_cost(evaluator)))
+    return evaluator, callbacks
 
 
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
@@ -321,7 +379,7 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
         with warnings.catch_warnings():  # said once in our words below
             warnings.filterwarnings("ignore", "You have specified a mini-batch size",
                                     UserWarning)
-            model = _model(config, venv, device, out, resume, verbose, trust_model)
+            model, extra = _model(config, venv, device, out, resume, verbose, trust_model)
         if (note := last_minibatch_note(config, venv.num_envs)) is not None:
             print(f"boids train: {note}")
         # the folder is claimed once the model is built: a checkpoint that cannot be resumed
@@ -330,19 +388,20 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
                      resume=resume is not None)
         write_json(out / "config.json", config.to_dict())
         remaining = config.total_timesteps - (model.num_timesteps if resume else 0)
+        final: bytes | None = None
 
-        def save(path: Path) -> None:
+        def save(path: Path, at: bytes | None = None) -> None:
             with atomic_path(path) as tmp:  # a kill never leaves a torn model
                 model.save(tmp)
                 write_meta(tmp, meta, model)
+                if at is not None:  # the rollout boundary it resumes from
+                    boundary.write(tmp, at)
 
-        evaluator = FlockEvalCallback(out, config.eval_every, config.eval_seeds,
-                                      config.env_fields, save_best=save)
-        evaluator.verbose = verbose
-        callbacks: list[Any] = [TrainingMetricsCallback(), evaluator]
-        if config.checkpoint_every:
-            callbacks.append(Checkpoints(config.checkpoint_every // venv.num_envs,
-                                         out / "checkpoints", meta))
+        digest = boundary.digest(identity(config))
+        evaluator, callbacks = _callbacks(config, out, venv.num_envs, meta, digest, save,
+                                          verbose)
+        if resume is not None:
+            evaluator.resume_at(model.num_timesteps, _saved_best(extra))
         if remaining > 0:
             rounded = whole_rollouts(config, venv.num_envs, remaining)
             if rounded != remaining:
@@ -352,9 +411,12 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
             callbacks.append(TrainingSummary(max(rounded // SUMMARIES, 1), total))
             model.learn(rounded, callback=CallbackList(callbacks), progress_bar=progress_bar,
                         reset_num_timesteps=resume is None, tb_log_name="run")
+            # the end of a rollout and its update: a boundary a longer training goes on from
+            if boundary.applies(model):
+                final = boundary.capture(model, venv, digest, _best_cost(evaluator))
             if config.eval_every and evaluator.last != model.num_timesteps:
                 _final_evaluation(evaluator, config)
-        save(out / "model.zip")
+        save(out / "model.zip", final)
     finally:
         venv.close()
     return out / "model.zip"

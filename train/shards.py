@@ -75,6 +75,17 @@ class Shard:
         self.sizes = self.batch.sizes
         self.rngs = [np.random.default_rng(0) for _ in self.envs]
         self.obs_size = self.envs[0].observation_space(self.envs[0].possible_agents[0]).shape[0]
+        # What each copy's episode so far is made of (its reset's seed and options, then the
+        # actions of every step since), so :meth:`state` can describe it as plain data and
+        # :meth:`restore` rebuild it bit for bit by replaying it. One array a step for the
+        # whole shard (no per-copy work on the hot path); the rows before the oldest episode's
+        # start are dropped when a copy resets.
+        self._episodes: list[tuple[int, dict[str, Any]] | None] = [None] * len(self.envs)
+        self._history: list[npt.NDArray[np.float32]] = []
+        self._steps = 0
+        """Steps of the shard since ``_history[0]``."""
+        self._started = [0] * len(self.envs)
+        """The step (counted as ``_steps``) each copy's episode started at."""
 
     def seed(self, seed_sequences: Sequence[np.random.SeedSequence]) -> None:
         self.rngs = [np.random.default_rng(s) for s in seed_sequences]
@@ -82,9 +93,13 @@ class Shard:
     def _reset_copy(self, i: int) -> npt.NDArray[np.float32]:
         spec, rng, env = self.specs[i], self.rngs[i], self.envs[i]
         options = spec.draw(rng)
-        return env.reset_arrays(seed=int(rng.integers(2**31 - 1)), options=options)
+        seed = int(rng.integers(2**31 - 1))
+        self._episodes[i] = (seed, options)
+        self._started[i] = self._steps
+        return env.reset_arrays(seed=seed, options=options)
 
     def reset(self) -> npt.NDArray[np.float32]:
+        self._history, self._steps = [], 0
         return np.concatenate([self._reset_copy(i) for i in range(len(self.envs))])
 
     def step(self, actions: npt.NDArray[np.float32]) -> tuple[
@@ -93,6 +108,8 @@ class Shard:
         """Steps every copy in one call (:class:`boids_env.batch.EnvBatch`, no per-agent
         dicts) and resets the copies whose episode ended."""
         result = self.batch.step_arrays(actions)
+        self._history.append(np.array(actions, dtype=np.float32))
+        self._steps += 1
         obs = result.observations
         rewards = result.rewards.astype(np.float32)
         dones = np.zeros(len(actions), dtype=bool)
@@ -110,7 +127,59 @@ class Shard:
                     infos[k]["TimeLimit.truncated"] = True
                 dones[start:stop] = True
                 obs[start:stop] = self._reset_copy(i)
+        if result.truncated.any():
+            self._forget()
         return obs, rewards, dones, infos
+
+    def _forget(self) -> None:
+        """Drops the history no copy's episode needs (the rows before the oldest start)."""
+        drop = min(self._started)
+        if drop:
+            del self._history[:drop]
+            self._steps -= drop
+            self._started = [s - drop for s in self._started]
+
+    def state(self) -> list[dict[str, Any]]:
+        """Each copy's episode as plain data: the reset's seed and options, the actions of
+        its steps so far (F, 2) per step, and the copy's random stream (whose next draws make
+        its next episode); :meth:`restore` rebuilds the shard from it bit for bit."""
+        out = []
+        for i, episode in enumerate(self._episodes):
+            if episode is None:
+                raise RuntimeError("the env copies have not been reset: no episode to save")
+            start, stop = self.batch.bounds[i], self.batch.bounds[i + 1]
+            rows = self._history[self._started[i]:]
+            actions = (np.stack([r[start:stop] for r in rows]) if rows
+                       else np.zeros((0, stop - start, 2), np.float32))
+            out.append({"seed": episode[0], "options": episode[1], "actions": actions,
+                        "rng": self.rngs[i].bit_generator.state})
+        return out
+
+    def restore(self, states: Sequence[dict[str, Any]]) -> npt.NDArray[np.float32]:
+        """The copies rebuilt from :meth:`state`'s data: each reset with its seed and options
+        and stepped with its actions (each copy alone, as bit-identical as stepped in the
+        batch), its random stream set; returns the observations the last step gave."""
+        if len(states) != len(self.envs):
+            raise ValueError(f"the saved env state holds {len(states)} copies, this shard "
+                             f"{len(self.envs)}")
+        obs, longest = [], max(len(s["actions"]) for s in states)
+        self._history = [np.zeros((self.batch.rows, 2), np.float32) for _ in range(longest)]
+        self._steps = longest
+        for i, (env, saved) in enumerate(zip(self.envs, states, strict=True)):
+            seed, options = int(saved["seed"]), dict(saved["options"])
+            actions = np.asarray(saved["actions"], dtype=np.float32)
+            copy_obs = env.reset_arrays(seed=seed, options=options)
+            for action in actions:
+                copy_obs = env.step_arrays(action).observations
+            self.rngs[i].bit_generator.state = saved["rng"]
+            self._episodes[i] = (seed, options)
+            self._started[i] = longest - len(actions)
+            start, stop = self.batch.bounds[i], self.batch.bounds[i + 1]
+            for row, action in zip(self._history[self._started[i]:], actions, strict=True):
+                row[start:stop] = action
+            obs.append(copy_obs)
+        self.batch._fused = None  # its constants are rebuilt from the copies' new episodes
+        return np.concatenate(obs)
 
     def call(self, copy: int, method: str, *args: Any, **kwargs: Any) -> Any:
         return getattr(self.envs[copy], method)(*args, **kwargs)

@@ -150,6 +150,24 @@ class FlockVecEnv(VecEnv):
         infos = [info for r in results for info in r[3]]
         return obs, rewards, dones, infos
 
+    def episodes_state(self) -> list[dict[str, Any]]:
+        """Every copy's episode so far and random stream as plain data, in copy order
+        (:meth:`Shard.state <boids_env.train.shards.Shard.state>`), wherever it is stepped."""
+        return [copy for shard in self.shards for copy in shard.state()]
+
+    def restore_episodes(self, states: Sequence[dict[str, Any]]) -> npt.NDArray[np.float32]:
+        """Rebuilds every copy from :meth:`episodes_state`'s data, bit for bit (however the
+        copies are split over processes now and then); returns the observations."""
+        if len(states) != len(self.specs):
+            raise ValueError(f"the saved env state holds {len(states)} copies, this training "
+                             f"steps {len(self.specs)}")
+        start, obs = 0, []
+        for shard in self.shards:
+            n = len(shard.sizes)
+            obs.append(shard.restore(list(states[start:start + n])))
+            start += n
+        return np.concatenate(obs)
+
     def close(self) -> None:
         if self._closed:
             return

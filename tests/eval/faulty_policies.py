@@ -86,3 +86,20 @@ class UnstartableRunner:
 
     def __call__(self, task):
         return {}
+
+
+def SlowReynolds():
+    """The study's Reynolds policy, 0.01 s slower per step: the same episodes (its results
+    are the plain policy's), slow enough for a test to kill a run between two of them."""
+    from boids_env.policies.registry import load_policy
+
+    policy = load_policy("reynolds")
+    for name in ("act", "act_batch"):
+        method = getattr(policy, name)
+
+        def slowed(*args, _method=method, **kwargs):
+            time.sleep(0.01)
+            return _method(*args, **kwargs)
+
+        setattr(policy, name, slowed)
+    return policy
