@@ -25,13 +25,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from boids_env.environment import BoidsEnv
 from boids_env.integrations import missing_extra
 
 try:
     from benchmarl.environments import task_config_registry
     from benchmarl.environments.common import Task, TaskClass
-    from benchmarl.utils import _read_yaml_config
     from torchrl.data import Composite
     from torchrl.envs import EnvBase
 
@@ -135,10 +136,13 @@ class BoidsTask(Task):
         looks in BenchMARL's folder, where the file is not)."""
         if path is None:
             path = str(CONF_DIR / "task" / self.env_name() / f"{self.name.lower()}.yaml")
-        config = _read_yaml_config(path)
+        config = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+        if config is None:
+            config = {}
         if not isinstance(config, dict):
             raise ValueError(f"{path} must hold a mapping of env fields, got "
                              f"{type(config).__name__}")
+        config.pop("defaults", None)  # Hydra's list, as BenchMARL's own loader drops it
         return self.get_task(config=config)
 
 
