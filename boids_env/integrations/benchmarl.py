@@ -148,7 +148,7 @@ class BoidsTask(Task):
 
 # BenchMARL's registry of "env/task" names, which its Hydra loader (and command line) looks
 # the task up in; its own environments fill it when benchmarl.environments is imported
-for _task in BoidsTask:
+for _task in BoidsTask.__members__.values():
     task_config_registry[f"{BoidsTask.env_name()}/{_task.name.lower()}"] = _task
 
 
