@@ -5,8 +5,8 @@ The same constraints as rps's single-integrator certificate on the points
 ``projection_distance`` ahead of the robots (pairs: −2Δx·(v_i − v_j) ≤ γ·h³ with
 h = |Δx|² − r², r = ``safety_radius`` + 2·``projection_distance``; walls:
 0.4·γ·(gap − r/2)³), with the speed bound a disc of radius ``magnitude_limit``·cos(π/8) (rps
-has the octagon around it). The QP min |v − v̂|² is solved by accelerated projected gradient
-on its dual (rps uses cvxopt), to 1e-9 m/s.
+has the octagon around it). The QP min |v − v̂|² is solved by an active set, or where the
+speed bound binds by accelerated projected gradient on its dual (rps uses cvxopt), to 1e-8 in its rows' units.
 """
 
 import math
@@ -16,7 +16,7 @@ import numpy as np
 from rps.utilities.transformations import create_si_to_uni_mapping, create_uni_to_si_mapping
 
 _ITERATIONS = 5000
-_TOLERANCE = 1e-9
+_TOLERANCE = 1e-8
 
 
 def _rows(xi, radius, gain, boundary):
@@ -50,28 +50,58 @@ def _rows(xi, radius, gain, boundary):
 
 
 def _disc(v, limit):
-    pairs = v.reshape(-1, 2)
-    norm = np.sqrt((pairs * pairs).sum(axis=1, keepdims=True))
-    return (pairs * np.minimum(1.0, limit / np.maximum(norm, 1e-300))).reshape(-1)
+    x, y = v[0::2], v[1::2]
+    scale = np.minimum(1.0, limit / np.maximum(np.sqrt(x * x + y * y), 1e-300))
+    return v * np.repeat(scale, 2)
+
+
+def _active_set(vhat, a, b):
+    """argmin |v − vhat|² over A v ≤ b by an active set (None if it does not settle)."""
+    active = []
+    v = vhat
+    for _ in range(4 * len(b) + 10):
+        if active:
+            rows = a[active]
+            lam = np.linalg.lstsq(rows @ rows.T, rows @ vhat - b[active], rcond=None)[0]
+            if lam.min() < -1e-12:
+                del active[int(np.argmin(lam))]
+                continue
+            v = vhat - rows.T @ lam
+        worst = int(np.argmax(a @ v - b))
+        if a[worst] @ v - b[worst] <= _TOLERANCE:
+            return v
+        if worst in active:
+            return None
+        active.append(worst)
+    return None
 
 
 def _solve(vhat, a, b, limit):
-    """argmin |v − vhat|² over A v ≤ b, |v_k| ≤ limit (dual accelerated gradient)."""
+    """argmin |v − vhat|² over A v ≤ b, |v_k| ≤ limit (dual accelerated gradient, on the
+    robots the rows name; the others only take the speed bound)."""
     v = _disc(vhat, limit)
     if not len(b) or np.all(a @ v <= b + _TOLERANCE):
+        return v
+    robots = np.flatnonzero(np.any(a != 0.0, axis=0).reshape(-1, 2).any(axis=1))
+    cols = np.stack([2 * robots, 2 * robots + 1], axis=1).reshape(-1)
+    a, sub = a[:, cols], vhat[cols]
+    w = _active_set(sub, a, b)
+    if w is not None and np.all(_disc(w, limit) == w):
+        v[cols] = w
         return v
     step = 1.0 / max(np.linalg.norm(a, 2) ** 2, 1e-12)
     lam = y = np.zeros(len(b))
     t = 1.0
     for _ in range(_ITERATIONS):
-        v = _disc(vhat - a.T @ y, limit)
-        new = np.maximum(0.0, y + step * (a @ v - b))
+        w = _disc(sub - a.T @ y, limit)
+        new = np.maximum(0.0, y + step * (a @ w - b))
         t_new = (1 + math.sqrt(1 + 4 * t * t)) / 2
         y = new + (t - 1) / t_new * (new - lam)
         lam, t = new, t_new
-        v = _disc(vhat - a.T @ lam, limit)
-        if np.all(a @ v <= b + _TOLERANCE):
+        w = _disc(sub - a.T @ lam, limit)
+        if np.all(a @ w <= b + _TOLERANCE):
             break
+    v[cols] = w
     return v
 
 
