@@ -23,15 +23,16 @@ def _literal(array: np.ndarray) -> str:
     return repr(np.asarray(array, dtype=float).tolist())
 
 
-def script_text(case: RobotariumCase) -> str:
-    """The Robotarium script of ``case`` (Python source)."""
+def script_text(case: RobotariumCase, figure: bool = True) -> str:
+    """The Robotarium script of ``case`` (Python source); ``figure``: ``show_figure`` and
+    ``sim_in_real_time`` on (a submission's), off for a fast local check."""
     from boids_env import __version__
 
     config = case.env_config()
     params = case.reynolds()
     turn = 2 * MAX_LINEAR / (2 * HALF_BASE)  # turning in place at the wheels' top speed
     values = {
-        "version": __version__, "robots": case.robots, "last": case.robots - 1,
+        "version": __version__, "figure": repr(bool(figure)), "robots": case.robots, "last": case.robots - 1,
         "iterations": case.iterations(config), "dt": TIME_STEP,
         "startup_steps": case.startup_steps(config),
         "startup_seconds": f"{config.scenario.startup_time:g}",
@@ -50,8 +51,8 @@ def script_text(case: RobotariumCase) -> str:
     return Template(TEMPLATE.read_text()).substitute(values)
 
 
-def write_script(case: RobotariumCase, out: str | Path) -> Path:
+def write_script(case: RobotariumCase, out: str | Path, figure: bool = True) -> Path:
     """Writes the script of ``case`` to ``out`` (atomically); returns its path."""
     from boids_env.files import write_text
 
-    return write_text(Path(out), script_text(case))
+    return write_text(Path(out), script_text(case, figure))
