@@ -9,8 +9,14 @@ from string import Template
 
 import numpy as np
 
-from boids_env.eval.robotarium.case import HALF_BASE, MAX_LINEAR, TIME_STEP, RobotariumCase
-from boids_env.eval.robotarium.case import initial_poses, waypoints
+from boids_env.eval.robotarium.case import (
+    HALF_BASE,
+    MAX_LINEAR,
+    TIME_STEP,
+    RobotariumCase,
+    initial_poses,
+    waypoints,
+)
 
 TEMPLATE = Path(__file__).with_name("template.py.txt")
 """The script's text with ``$name`` placeholders."""
@@ -32,7 +38,8 @@ def script_text(case: RobotariumCase, figure: bool = True) -> str:
     params = case.reynolds()
     turn = 2 * MAX_LINEAR / (2 * HALF_BASE)  # turning in place at the wheels' top speed
     values = {
-        "version": __version__, "figure": repr(bool(figure)), "robots": case.robots, "last": case.robots - 1,
+        "version": __version__, "figure": repr(bool(figure)),
+         "robots": case.robots, "last": case.robots - 1,
         "iterations": case.iterations(config), "dt": TIME_STEP,
         "startup_steps": case.startup_steps(config),
         "startup_seconds": f"{config.scenario.startup_time:g}",

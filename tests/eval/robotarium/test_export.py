@@ -48,7 +48,8 @@ def test_the_stand_in_rejects_a_script_that_drives_too_fast(tmp_path):
     script = write_script(RobotariumCase(robots=7, seconds=5.0), tmp_path / "s.py",
                           figure=False)
     fast = tmp_path / "fast.py"
-    fast.write_text(script.read_text().replace("dxu = wheel_limited(", "dxu = 2.0 * wheel_limited("))
+    text = script.read_text().replace("dxu = wheel_limited(", "dxu = 2.0 * wheel_limited(")
+    fast.write_text(text)
     rc, report, _ = submit(fast, tmp_path)
     assert rc == 1 and report["errors"].get("exceeded_actuator_limits", 0) > 0, report
 

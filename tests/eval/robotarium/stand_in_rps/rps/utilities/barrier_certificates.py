@@ -5,8 +5,9 @@ The same constraints as rps's single-integrator certificate on the points
 ``projection_distance`` ahead of the robots (pairs: −2Δx·(v_i − v_j) ≤ γ·h³ with
 h = |Δx|² − r², r = ``safety_radius`` + 2·``projection_distance``; walls:
 0.4·γ·(gap − r/2)³), with the speed bound a disc of radius ``magnitude_limit``·cos(π/8) (rps
-has the octagon around it). The QP min |v − v̂|² is solved by an active set, or where the
-speed bound binds by accelerated projected gradient on its dual (rps uses cvxopt), to 1e-8 in its rows' units.
+has the octagon around it). The QP min |v − v̂|² is solved by an active set, or where
+the speed bound binds by accelerated projected gradient on its dual (rps uses cvxopt),
+to 1e-8 in its rows' units.
 """
 
 import math
