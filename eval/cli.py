@@ -22,6 +22,7 @@ from boids_env.eval.flags import (
     reynolds_preset,
 )
 from boids_env.eval.pool import BACKENDS, DEFAULT_EPISODE_TIMEOUT
+from boids_env.eval.robotarium.cli import add_export_parser
 from boids_env.eval.ros.cli import add_ros_parser
 from boids_env.eval.ros2.cli import add_ros2_parser
 from boids_env.extras import require
@@ -33,13 +34,14 @@ MAX_FAST = 1000.0
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
-    """Adds ``run``, ``eval``, ``report``, ``ros``, ``ros2``, ``scenes`` and ``select`` to the
-    ``boids`` subparsers."""
+    """Adds ``run``, ``eval``, ``report``, ``ros``, ``ros2``, ``export``, ``scenes`` and
+    ``select`` to the ``boids`` subparsers."""
     _run_parser(sub)
     _eval_parser(sub)
     _report_parser(sub)
     add_ros_parser(sub)
     add_ros2_parser(sub)
+    add_export_parser(sub)
     add_command(sub, "scenes", _cmd_scenes)
     _select_parser(sub)
 

@@ -121,9 +121,28 @@ LAB_PATH = ((-3.5, 2.0), (0.5, 2.0), (0.5, -1.0), (4.0, -1.0), (4.0, 3.0), (1.5,
             (1.5, 1.0), (-3.5, 1.0))
 """The ``lab`` scene's leader path (m)."""
 
+ROBOTARIUM_BOX = (-1.6, -1.0, 1.6, 1.0)
+"""The Robotarium's testbed (m): x in [-1.6, 1.6], y in [-1, 1] (``BOUNDARIES`` of its
+``rps/robotarium_abc.py``)."""
+ROBOTARIUM_PATH = ((0.0, 0.6), (-1.2, 0.6), (-1.2, -0.6), (1.2, -0.6), (1.2, 0.6),
+                   (-1.2, 0.6))
+"""The ``robotarium`` scene's leader path (m): the study's square, squeezed into the testbed
+(±1.2 m × ±0.6 m; it starts north from the start, as the study's)."""
+
+
+def robotarium() -> Scene:
+    """The Robotarium's 3.2 m × 2 m testbed (GRITSbots; ``boids export robotarium``); the
+    study's square squeezed into it, the start grid at 0.3 m cells."""
+    return Scene("robotarium", "the Robotarium's 3.2 m × 2 m testbed; the study's square "
+                 "squeezed to ±1.2 m × ±0.6 m, start cells 0.3 m apart", box=ROBOTARIUM_BOX,
+                 defaults=_defaults(path="waypoints", waypoints=ROBOTARIUM_PATH,
+                                    start=(0.0, 0.35), start_heading=90.0,
+                                    layout_spacing=0.3))
+
+
 BUILTIN: dict[str, Callable[[], Scene]] = {
     "arena": arena, "small_room": small_room, "doorway": doorway, "corridor": corridor,
-    "pillars": pillars, "lab": lab}
+    "pillars": pillars, "lab": lab, "robotarium": robotarium}
 """The built-in scenes by name."""
 FILE_SUFFIXES = (".yaml", ".yml", ".toml", ".json")
 """A scene given as a file: a ROS map (YAML) or a shapes list (TOML or JSON)."""

@@ -1,0 +1,1 @@
+"""Stand-in for the Robotarium's ``rps`` (tests only; see the README beside it)."""
