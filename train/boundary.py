@@ -109,7 +109,7 @@ def write(path: str | Path, entry: bytes) -> None:
 def read(path: str | Path) -> dict[str, Any] | None:
     """The boundary a checkpoint carries (None when it has none: an older zip, SAC's);
     ``ValueError`` naming the file when the entry is not what :func:`capture` writes."""
-    from boids_env.policies.mlp_actor import _check_members
+    from boids_env.policies.mlp_actor import _read_arrays
     from boids_env.untrusted import open_zip
 
     with open_zip(path, "checkpoint") as zf:
@@ -117,10 +117,9 @@ def read(path: str | Path) -> dict[str, Any] | None:
             return None
         raw = read_zip_entry(zf, ENTRY, LIMIT)
     try:
-        with zipfile.ZipFile(io.BytesIO(raw)) as inner:
-            _check_members(inner)  # no array declaring more than its entry holds
-        with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
-            arrays = {name: npz[name] for name in ARRAYS}
+        # each array read within the budget, none declaring more than its entry holds
+        read = _read_arrays(raw, LIMIT)
+        arrays = {name: read[name] for name in ARRAYS}
         meta = json.loads(arrays.pop("meta").tobytes())
         return {**meta, **arrays, "copies": _copies(meta["copies"], arrays.pop("actions"))}
     except (ValueError, KeyError, TypeError, OSError, zipfile.BadZipFile) as exc:

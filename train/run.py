@@ -336,6 +336,18 @@ def _callbacks(config: TrainConfig, out: Path, slots: int, meta: dict[str, Any],
     return evaluator, callbacks
 
 
+def _quiet_model(config: TrainConfig, venv: Any, device: str, out: Path,
+                 resume: str | Path | None, verbose: int,
+                 trust_model: bool) -> tuple[Any, Any]:
+    """:func:`_model`, with SB3's mini-batch warning said once in our words instead."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "You have specified a mini-batch size", UserWarning)
+        built = _model(config, venv, device, out, resume, verbose, trust_model)
+    if (note := last_minibatch_note(config, venv.num_envs)) is not None:
+        print(f"boids train: {note}")
+    return built
+
+
 def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = None,
           overwrite: bool = False, progress_bar: bool = False, verbose: int = 0,
           trust_model: bool = False) -> Path:
@@ -376,12 +388,7 @@ def train(config: TrainConfig, out: str | Path, *, resume: str | Path | None = N
     _say_where(flock, torch.get_num_threads(), device)
     venv = VecMonitor(flock)
     try:
-        with warnings.catch_warnings():  # said once in our words below
-            warnings.filterwarnings("ignore", "You have specified a mini-batch size",
-                                    UserWarning)
-            model, extra = _model(config, venv, device, out, resume, verbose, trust_model)
-        if (note := last_minibatch_note(config, venv.num_envs)) is not None:
-            print(f"boids train: {note}")
+        model, extra = _quiet_model(config, venv, device, out, resume, verbose, trust_model)
         # the folder is claimed once the model is built: a checkpoint that cannot be resumed
         # leaves nothing behind
         folder.claim(out, identity(config), overwrite=overwrite, owner=folder.TRAIN,
