@@ -1,6 +1,6 @@
 """The env as a native batched TorchRL env: ``BoidsTorchRLEnv(num_envs=64, robots=13)`` steps
 64 worlds per call through one :class:`~boids_env.batch.EnvBatch` (TensorDict in, TensorDict
-out), as VMAS's ``VmasEnv`` steps its batch. Needs ``pip install 'boids-env[clients]'``
+out), as VMAS's ``VmasEnv`` steps its batch. Needs ``pip install -e '.[clients]'``
 (TorchRL).
 
 Layout (VMAS's and BenchMARL's conventions; ``N`` worlds, ``F`` followers, ``D`` observation
