@@ -284,6 +284,9 @@ def add_controller_args(p: argparse.ArgumentParser, source: str) -> None:
                    help="policy seed when the source announces no episode (0)")
     p.add_argument("--max-ticks", type=int, default=None,
                    help="exit after answering this many ticks")
+    p.add_argument("--idle-exit", type=float, default=30.0, metavar="S",
+                   help="exit once no tick has come for S seconds after the first (the "
+                        "simulator ended); 0: run until stopped (30)")
     p.add_argument("--no-markers", action="store_true",
                    help="do not publish the rule-force markers")
     p.add_argument("--quiet", action="store_true",
@@ -309,6 +312,7 @@ def controller_options(args: argparse.Namespace, **extra: Any) -> ControllerOpti
     return ControllerOptions(
         policy=args.policy, preset=preset, leader_weight=args.leader_weight,
         env_fields=fields, sync=args.sync, seed=args.seed, max_ticks=args.max_ticks,
+        idle_exit=args.idle_exit,
         markers=not args.no_markers, quiet=args.quiet, trust_model=args.trust_model, **extra)
 
 

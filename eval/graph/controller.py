@@ -66,6 +66,9 @@ class ControllerOptions:
     """Seconds to wait for the simulator's config."""
     max_ticks: int | None = None
     """Stop after answering this many ticks (None: run until shut down)."""
+    idle_exit: float = 30.0
+    """Exit once no tick has come for this many seconds after the first (the simulator
+    ended, or every robot's odometry stopped); 0: run until shut down."""
     markers: bool = True
     """Publish the rule-force markers when the policy has forces."""
     quiet: bool = False
@@ -84,6 +87,10 @@ class ControllerOptions:
                 self.max_ticks, int) or self.max_ticks < 1):
             raise ValueError(f"max_ticks must be a positive integer or None, got "
                              f"{self.max_ticks!r}")
+        if isinstance(self.idle_exit, bool) or not (
+                isinstance(self.idle_exit, int | float) and 0 <= self.idle_exit <= 86400):
+            raise ValueError(f"idle_exit must be in [0, 86400] s (0: never), got "
+                             f"{self.idle_exit!r}")
         if not isinstance(self.trust_model, bool):
             raise TypeError(f"trust_model must be True or False, got {self.trust_model!r}")
         split_preset(self.policy, self.preset)  # a bad spec or preset fails before ROS starts
@@ -202,10 +209,15 @@ class ControllerCore:
         """Answers ticks through ``transport`` until it stops or ``max_ticks`` are answered;
         returns how many were. ``sync="stamp"``: each complete tick once, in order;
         ``"rate"``: every ``dt`` of wall time, the latest odometry of every robot."""
-        limit = self.options.max_ticks
-        deadline = time.monotonic()
+        limit, idle = self.options.max_ticks, self.options.idle_exit
+        deadline = answered_at = time.monotonic()
         last: int | None = None
         while not transport.stopped() and (limit is None or self.answered < limit):
+            if idle and self.answered and time.monotonic() - answered_at > idle:
+                if not self.options.quiet:
+                    print(f"controller: no tick for {idle:g} s (the simulator ended or the "
+                          f"odometry stopped); exiting after {self.answered} ticks", flush=True)
+                break
             if self.options.sync == "stamp":
                 try:
                     tick = self.ticks.get(timeout=0.1)
@@ -219,6 +231,7 @@ class ControllerCore:
                     continue
                 tick, last = snap, snap.stamp_ns
             transport.answer(tick)
+            answered_at = time.monotonic()
         return self.answered
 
     @property
