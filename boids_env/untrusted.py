@@ -173,6 +173,21 @@ def check_file(path: str | Path, field: str, limit: int) -> int:
     return info.st_size
 
 
+def file_identity(path: str | Path, field: str) -> tuple[str, int, int]:
+    """``(resolved path, size, mtime_ns)`` of ``path``, which must be a regular file: the
+    key a parsed file is cached under (an edited file is read again); else a ``ValueError``
+    naming ``field``."""
+    where = f"{field} {quote_path(path)}"
+    p = Path(path)
+    try:
+        info = p.stat()
+    except OSError as exc:
+        raise ValueError(f"{where}: cannot be read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ValueError(f"{where}: not a regular file (a {_kind(info.st_mode)})")
+    return str(p.resolve()), info.st_size, info.st_mtime_ns
+
+
 def open_zip(path: str | Path, field: str = "policy model",
              limit: int = MAX_MODEL_BYTES) -> zipfile.ZipFile:
     """``path`` opened as a zip for reading, once it is known to be a regular file of at most

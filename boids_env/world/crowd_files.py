@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.untrusted import MAX_DEPTH, check_depth, quote_path, read_text
+from boids_env.untrusted import MAX_DEPTH, check_depth, file_identity, quote_path, read_text
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -91,15 +91,7 @@ def read_crowd(path: str | Path, fmt: str = "auto", frame_step: float = 10.0,
                rate: float = 2.5) -> Tracks:
     """The tracks of crowd file ``path`` in format ``fmt`` (:data:`CROWD_FORMATS`), a sample
     every ``frame_step`` frame numbers at ``rate`` samples per second (see the module)."""
-    p = Path(path)
-    try:
-        stat = p.stat()
-    except OSError as exc:
-        raise ValueError(f"crowd_file {quote_path(path)}: cannot be read "
-                         f"({exc.strerror or exc})") from None
-    if not p.is_file():
-        raise ValueError(f"crowd_file {quote_path(path)}: not a regular file")
-    return _read_crowd(str(p.resolve()), stat.st_size, stat.st_mtime_ns, fmt, float(frame_step),
+    return _read_crowd(*file_identity(path, "crowd_file"), fmt, float(frame_step),
                        float(rate))
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from boids_env.untrusted import quote_path, read_text
+from boids_env.untrusted import file_identity, quote_path, read_text
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -46,15 +46,7 @@ def read_walk(path: str | Path) -> tuple[FloatArray, FloatArray]:
     numbers within ±:data:`WALK_MAX_COORDINATE`, times >= 0 and strictly increasing, at least
     two rows; anything else raises ``ValueError`` naming the file and the row.
     """
-    p = WALKS.get(str(path), Path(path))
-    try:
-        stat = p.stat()
-    except OSError as exc:
-        raise ValueError(f"leader_trajectory {quote_path(path)}: cannot be read: "
-                         f"{exc.strerror or exc}") from None
-    if not p.is_file():
-        raise ValueError(f"leader_trajectory {quote_path(path)}: not a regular file")
-    return _read_walk(str(p.resolve()), stat.st_size, stat.st_mtime_ns)
+    return _read_walk(*file_identity(WALKS.get(str(path), Path(path)), "leader_trajectory"))
 
 
 @functools.lru_cache(maxsize=16)
