@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib.util
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
@@ -382,6 +383,10 @@ def _check_fits(config: EnvConfig) -> None:
     if config.world.scene == "arena" and config.scenario.start == (0.0, 0.0):
         _check_arena_extents(config)
     _check_scene(config)
+    if config.scenario.crowd and importlib.util.find_spec("shapely") is not None:
+        from boids_env.world.people import check_crowd_fits  # (the people extra)
+
+        check_crowd_fits(scene, config.scenario.crowd, config.scenario.person_radius)
     if len(_FITTED) >= FITTED_LIMIT:
         _FITTED.clear()
     _FITTED[key] = scene  # held: the scene's id stays its own while the entry lives

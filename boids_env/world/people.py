@@ -102,6 +102,28 @@ def _require_jupedsim() -> Any:
     return jupedsim
 
 
+def check_crowd_fits(scene: Scene, crowd: int, radius: float) -> None:
+    """Refuses (``ValueError`` naming ``crowd``) a crowd that no placement can fit: its
+    pedestrians start at random points of the walkable area (less the walls' buffer) at least
+    a clearance apart, and discs dropped at random never cover more than about 54.7 % of a
+    floor (random sequential adsorption's jamming limit), so a crowd whose discs would
+    cover more is refused when the config is built, not at reset."""
+    inner = walkable_area(scene).buffer(-(radius + ROBOT_ROOM + WALL_BUFFER + 0.05))
+    clearance = max(CROWD_CLEARANCE, 2 * (radius + ROBOT_ROOM))
+    disc = math.pi * (clearance / 2) ** 2
+    if crowd * disc > JAMMING * inner.area:
+        most = int(JAMMING * inner.area // disc)
+        raise ValueError(f"crowd must be at most {most} in scene {scene.name!r} (got {crowd}): "
+                         f"{crowd} pedestrians {clearance:.2f} m apart (person_radius "
+                         f"{radius:g} m) cannot be placed at random on its {inner.area:.1f} m² "
+                         f"of floor where pedestrians start")
+
+
+JAMMING = 0.547
+"""The densest cover random placement of equal discs reaches (random sequential
+adsorption's jamming limit in the plane)."""
+
+
 def walkable_area(scene: Scene) -> Any:
     """The scene's free floor as a shapely polygon (with holes): the box (or the scene's
     bounds) less every capsule (buffered by its radius, polygons circumscribing the round

@@ -19,7 +19,7 @@ REFUSALS = {
         "random_waypoints: no path"),
     "no room for the crowd": (
         {"scene": "small_room", "crowd": 12}, {"person_radius": 0.4}, None,
-        "crowd: no free place"),
+        "crowd must be at most"),
     "a bad option value": ({}, {"leader_speed": -1.0}, None, "leader_speed"),
     "the world cannot be built": ({}, {"leader_speed": 0.6}, "World", "the physics refused"),
 }

@@ -306,8 +306,16 @@ def test_a_person_walks_the_lab_map():
     assert np.hypot(*(pos[-1, 0] - pos[0, 0])) > 1.0, "the person walked off its start"
 
 
-def test_a_crowd_that_does_not_fit_is_refused_and_leaves_no_episode():
-    env = parallel_env(scene="small_room", path_size=1.0, crowd=60, robots=4)
+def test_a_crowd_that_cannot_fit_is_refused_when_the_env_is_built():
+    # 60 pedestrians 1 m apart on a small room's few m² of floor: no draw can place them,
+    # so the config says so (it was found only at reset, as a step-time error)
+    with pytest.raises(ValueError, match=r"crowd must be at most \d+ in scene 'small_room' "
+                                         r"\(got 60\)"):
+        parallel_env(scene="small_room", path_size=1.0, crowd=60, robots=4)
+
+
+def test_a_crowd_that_fits_by_area_but_not_by_draw_is_refused_at_reset_with_no_episode():
+    env = parallel_env(scene="arena", crowd=58)  # at the jamming bound: seed 0 is not placed
     with pytest.raises(ValueError, match=r"crowd: no free place for a pedestrian"):
         env.reset(seed=0)
     with pytest.raises(RuntimeError, match=r"call reset\(\) first"):
