@@ -18,7 +18,7 @@ Everything is a pure function of the episode's time: no random draw, the same ru
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -27,12 +27,42 @@ from boids_env.world.crowd_files import Tracks, read_crowd
 from boids_env.world.people import within_speeds
 
 if TYPE_CHECKING:
-    from boids_env.world.scenario import ScenarioConfig
     from boids_env.world.scene import Scene
-    from boids_env.world.space import World
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
+
+
+class _Bodies(Protocol):
+    """What a replayed crowd reads of :class:`~boids_env.world.space.World` (which imports
+    the config, which imports the scenario, which imports this module)."""
+
+    @property
+    def pedestrian_positions(self) -> FloatArray: ...
+
+
+class ScenarioConfig(Protocol):
+    """The fields of :class:`boids_env.world.scenario.ScenarioConfig` a replayed crowd reads
+    (the scenario imports this module to check its file, so it is not imported here)."""
+
+    @property
+    def crowd_file(self) -> str | None: ...
+    @property
+    def crowd_format(self) -> str: ...
+    @property
+    def crowd_frame_step(self) -> float: ...
+    @property
+    def crowd_rate(self) -> float: ...
+    @property
+    def crowd_time(self) -> float: ...
+    @property
+    def crowd_offset(self) -> tuple[float, float]: ...
+    @property
+    def crowd_rotation(self) -> float: ...
+    @property
+    def crowd_scale(self) -> float: ...
+    @property
+    def person_radius(self) -> float: ...
 
 OFF_STAGE = (1.0e5, 1.0e5)
 """Where the first pedestrian not in the recording at the time waits (m): far beyond every
@@ -167,7 +197,7 @@ class ReplayedCrowd:
         changed = np.flatnonzero(now != then)
         return changed, self.positions(t + self.dt)[changed]
 
-    def walk(self, t: float, world: World) -> FloatArray:
+    def walk(self, t: float, world: _Bodies) -> FloatArray:
         """The crowd's body velocities (P, 2) for the period from ``t`` (s): to each
         pedestrian's recorded position at its end, within its speed (zero for one coming on
         or going off stage, which the world places)."""
