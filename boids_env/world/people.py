@@ -24,6 +24,7 @@ simulation and replays its periods.
 from __future__ import annotations
 
 import math
+import weakref
 from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
@@ -128,7 +129,19 @@ def walkable_area(scene: Scene) -> Any:
     """The scene's free floor as a shapely polygon (with holes): the box (or the scene's
     bounds) less every capsule (buffered by its radius, polygons circumscribing the round
     ends) and convex block; for a map, its free cells. The part containing most area is kept
-    when obstacles cut the floor in pieces."""
+    when obstacles cut the floor in pieces. Built once per scene object (a frozen value;
+    shapely's geometries are immutable): the config's crowd check and every reset share it."""
+    area = _AREAS.get(scene)
+    if area is None:
+        area = _AREAS[scene] = _walkable_area(scene)
+    return area
+
+
+_AREAS: weakref.WeakKeyDictionary[Scene, Any] = weakref.WeakKeyDictionary()
+""":func:`walkable_area` by scene (gone with the scene)."""
+
+
+def _walkable_area(scene: Scene) -> Any:
     import shapely
     from shapely.geometry import LineString, Point, Polygon, box
 
